@@ -1,0 +1,1 @@
+"""localpbo core: the math of local preferential Bayesian optimization (no ROS here)."""

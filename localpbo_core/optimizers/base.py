@@ -1,0 +1,44 @@
+"""The ask/tell contract (DESIGN.md §3).
+
+An optimizer is a deterministic state machine over (config, seed, outcomes so far):
+``ask()`` returns new candidates to evaluate and the duels wanted between candidate ids;
+``tell()`` takes duel outcomes. Budget is counted in evaluations (paper App. D.1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A parameter vector to evaluate. ``theta`` lies in [0,1]^d (float64, read-only)."""
+
+    id: int
+    theta: np.ndarray = field(compare=False)
+
+
+@dataclass(frozen=True)
+class Duel:
+    """A comparison wanted between two candidate ids (new or earlier ones)."""
+
+    first: int
+    second: int
+
+
+@dataclass(frozen=True)
+class Ask:
+    """The next work: candidates to evaluate (possibly none) and duels to run."""
+
+    candidates: tuple[Candidate, ...]
+    duels: tuple[Duel, ...]
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """The result of a duel: ``winner`` was preferred over ``loser`` (ids)."""
+
+    winner: int
+    loser: int
