@@ -1,0 +1,336 @@
+"""Episode results, duel requests and duel outcomes on ``diagnostic_msgs/msg/DiagnosticStatus``.
+
+Each schema is a DiagnosticStatus whose ``name`` identifies the schema and whose ``values``
+(KeyValue pairs, each key at most once, order free) carry the fields as text:
+
+* ids: non-negative decimal integers, no sign, no leading zeros (``"0"``, ``"17"``);
+* floats: shortest round-trip text (Python ``repr``, C++ ``std::to_chars``/``%.17g``), finite;
+* ``level``: ``OK`` (0) unless the record reports a failure, then ``ERROR`` (2);
+* ``message``: free human-readable text, ignored by decoders; ``hardware_id``: ``""``.
+
+Unknown or duplicate keys are rejected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import TypeVar
+
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from localpbo_msgs_py._diag import LEVEL_ERROR, LEVEL_OK, make_status, read_status
+from localpbo_msgs_py._guard import guarded
+from localpbo_msgs_py._validate import (
+    check_expected_run,
+    check_finite,
+    check_id,
+    check_run_id,
+    check_text,
+    format_float,
+    parse_float,
+    parse_id,
+    require_keys,
+)
+from localpbo_msgs_py.errors import DecodeError, FieldError
+
+EPISODE_RESULT_NAME = "localpbo/episode_result"
+DUEL_REQUEST_NAME = "localpbo/duel_request"
+DUEL_OUTCOME_NAME = "localpbo/duel_outcome"
+
+
+def _check_level(level: int, expected: int) -> None:
+    if level != expected:
+        raise FieldError("level", f"is {level}, expected {expected} for this record")
+
+
+E = TypeVar("E", bound=StrEnum)
+
+
+def _enum(cls: type[E], value: object, field: str) -> E:
+    try:
+        return cls(value)
+    except ValueError:
+        allowed = ", ".join(m.value for m in cls)
+        raise FieldError(field, f"{value!r} is not one of {allowed}") from None
+
+
+class EpisodeStatus(StrEnum):
+    """Whether the episode ran (``ok``) or could not be evaluated (``failed``)."""
+
+    OK = "ok"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """The outcome of running one candidate's episode (simulator → oracle).
+
+    Keys: ``run_id``, ``candidate_id``, ``status`` (``ok``|``failed``), ``episode_return``
+    (finite float, iff ``ok``), ``error`` (non-empty text, iff ``failed``).
+    """
+
+    run_id: str
+    candidate_id: int
+    status: EpisodeStatus
+    episode_return: float | None = None
+    error: str = ""
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run_id)
+        check_id(self.candidate_id, "candidate_id")
+        object.__setattr__(self, "status", _enum(EpisodeStatus, self.status, "status"))
+        if self.status is EpisodeStatus.OK:
+            if self.episode_return is None:
+                raise FieldError("episode_return", "required when status is ok")
+            object.__setattr__(
+                self, "episode_return", check_finite(self.episode_return, "episode_return")
+            )
+            if self.error:
+                raise FieldError("error", "must be empty when status is ok")
+        else:
+            if self.episode_return is not None:
+                raise FieldError("episode_return", "must be absent when status is failed")
+            check_text(self.error, "error", allow_empty=False)
+
+    @classmethod
+    def ok(cls, run_id: str, candidate_id: int, episode_return: float) -> EpisodeResult:
+        """A successful episode."""
+        return cls(run_id, candidate_id, EpisodeStatus.OK, episode_return)
+
+    @classmethod
+    def failed(cls, run_id: str, candidate_id: int, error: str) -> EpisodeResult:
+        """An episode that could not be evaluated (simulator error, timeout, ...)."""
+        return cls(run_id, candidate_id, EpisodeStatus.FAILED, None, error)
+
+    def encode(self) -> DiagnosticStatus:
+        """The ROS message."""
+        values = {
+            "run_id": self.run_id,
+            "candidate_id": str(self.candidate_id),
+            "status": self.status.value,
+        }
+        if self.status is EpisodeStatus.OK:
+            assert self.episode_return is not None
+            values["episode_return"] = format_float(self.episode_return)
+            return make_status(EPISODE_RESULT_NAME, LEVEL_OK, "ok", values)
+        values["error"] = self.error
+        return make_status(EPISODE_RESULT_NAME, LEVEL_ERROR, self.error, values)
+
+    @classmethod
+    def decode(
+        cls, msg: object, *, expected_run_id: str | None = None
+    ) -> EpisodeResult | DecodeError:
+        """Validate and decode."""
+
+        def body() -> EpisodeResult:
+            level, _, v = read_status(msg, EPISODE_RESULT_NAME)
+            require_keys(v, ("run_id", "candidate_id", "status"), ("episode_return", "error"))
+            run_id = check_run_id(v["run_id"])
+            check_expected_run(run_id, expected_run_id)
+            cid = parse_id(v["candidate_id"], "candidate_id")
+            if v["status"] == EpisodeStatus.OK.value:
+                require_keys(
+                    v, ("run_id", "candidate_id", "status", "episode_return"),
+                    context=" (must be absent when status is ok)",
+                )
+                _check_level(level, LEVEL_OK)
+                return cls.ok(run_id, cid, parse_float(v["episode_return"], "episode_return"))
+            if v["status"] == EpisodeStatus.FAILED.value:
+                require_keys(
+                    v, ("run_id", "candidate_id", "status", "error"),
+                    context=" (must be absent when status is failed)",
+                )
+                _check_level(level, LEVEL_ERROR)
+                return cls.failed(run_id, cid, v["error"])
+            raise FieldError("status", f"{v['status'][:40]!r} is not 'ok' or 'failed'")
+
+        return guarded("episode_result", body)
+
+
+@dataclass(frozen=True)
+class DuelRequest:
+    """Ask the oracle to compare two evaluated candidates (optimizer → oracle).
+
+    Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (distinct candidate ids).
+    """
+
+    run_id: str
+    duel_id: int
+    first_id: int
+    second_id: int
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run_id)
+        check_id(self.duel_id, "duel_id")
+        check_id(self.first_id, "first_id")
+        check_id(self.second_id, "second_id")
+        if self.first_id == self.second_id:
+            raise FieldError("second_id", f"equals first_id ({self.first_id}): self-duel")
+
+    def encode(self) -> DiagnosticStatus:
+        """The ROS message."""
+        values = {
+            "run_id": self.run_id,
+            "duel_id": str(self.duel_id),
+            "first_id": str(self.first_id),
+            "second_id": str(self.second_id),
+        }
+        return make_status(DUEL_REQUEST_NAME, LEVEL_OK, "", values)
+
+    @classmethod
+    def decode(
+        cls, msg: object, *, expected_run_id: str | None = None
+    ) -> DuelRequest | DecodeError:
+        """Validate and decode."""
+
+        def body() -> DuelRequest:
+            level, _, v = read_status(msg, DUEL_REQUEST_NAME)
+            require_keys(v, ("run_id", "duel_id", "first_id", "second_id"))
+            _check_level(level, LEVEL_OK)
+            run_id = check_run_id(v["run_id"])
+            check_expected_run(run_id, expected_run_id)
+            return cls(
+                run_id,
+                parse_id(v["duel_id"], "duel_id"),
+                parse_id(v["first_id"], "first_id"),
+                parse_id(v["second_id"], "second_id"),
+            )
+
+        return guarded("duel_request", body)
+
+
+class OutcomeKind(StrEnum):
+    """How a duel ended (DESIGN.md §3: winner/loser now, indifferent and failed later)."""
+
+    DECISIVE = "decisive"
+    INDIFFERENT = "indifferent"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class DuelOutcome:
+    """The oracle's answer to a duel request (oracle → optimizer).
+
+    Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (echo the request), ``kind``
+    (``decisive``|``indifferent``|``failed``); ``winner_id`` and ``loser_id`` iff decisive (a
+    permutation of first/second); ``reason`` (non-empty text) iff failed.
+    """
+
+    run_id: str
+    duel_id: int
+    first_id: int
+    second_id: int
+    kind: OutcomeKind
+    winner_id: int | None = None
+    loser_id: int | None = None
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run_id)
+        check_id(self.duel_id, "duel_id")
+        check_id(self.first_id, "first_id")
+        check_id(self.second_id, "second_id")
+        if self.first_id == self.second_id:
+            raise FieldError("second_id", f"equals first_id ({self.first_id}): self-duel")
+        object.__setattr__(self, "kind", _enum(OutcomeKind, self.kind, "kind"))
+        if self.kind is OutcomeKind.DECISIVE:
+            if self.winner_id is None or self.loser_id is None:
+                raise FieldError("winner_id", "winner_id and loser_id required when decisive")
+            check_id(self.winner_id, "winner_id")
+            check_id(self.loser_id, "loser_id")
+            if {self.winner_id, self.loser_id} != {self.first_id, self.second_id}:
+                raise FieldError(
+                    "winner_id",
+                    f"winner {self.winner_id}/loser {self.loser_id} are not the duel's ids "
+                    f"{self.first_id}, {self.second_id}",
+                )
+        elif self.winner_id is not None or self.loser_id is not None:
+            raise FieldError("winner_id", f"winner_id/loser_id must be absent when {self.kind}")
+        if self.kind is OutcomeKind.FAILED:
+            check_text(self.reason, "reason", allow_empty=False)
+        elif self.reason:
+            raise FieldError("reason", f"must be empty when {self.kind}")
+
+    @classmethod
+    def decisive(
+        cls, request: DuelRequest, winner_id: int
+    ) -> DuelOutcome:
+        """``winner_id`` beat the other candidate of ``request``."""
+        loser = request.second_id if winner_id == request.first_id else request.first_id
+        return cls(
+            request.run_id, request.duel_id, request.first_id, request.second_id,
+            OutcomeKind.DECISIVE, winner_id, loser,
+        )
+
+    @classmethod
+    def indifferent(cls, request: DuelRequest) -> DuelOutcome:
+        """Neither candidate of ``request`` was preferred."""
+        return cls(
+            request.run_id, request.duel_id, request.first_id, request.second_id,
+            OutcomeKind.INDIFFERENT,
+        )
+
+    @classmethod
+    def failed(cls, request: DuelRequest, reason: str) -> DuelOutcome:
+        """The duel could not be judged (missing episode, failed episode, timeout, ...)."""
+        return cls(
+            request.run_id, request.duel_id, request.first_id, request.second_id,
+            OutcomeKind.FAILED, reason=reason,
+        )
+
+    def encode(self) -> DiagnosticStatus:
+        """The ROS message."""
+        values = {
+            "run_id": self.run_id,
+            "duel_id": str(self.duel_id),
+            "first_id": str(self.first_id),
+            "second_id": str(self.second_id),
+            "kind": self.kind.value,
+        }
+        level = LEVEL_OK
+        if self.kind is OutcomeKind.DECISIVE:
+            values["winner_id"] = str(self.winner_id)
+            values["loser_id"] = str(self.loser_id)
+        elif self.kind is OutcomeKind.FAILED:
+            values["reason"] = self.reason
+            level = LEVEL_ERROR
+        return make_status(DUEL_OUTCOME_NAME, level, self.reason, values)
+
+    @classmethod
+    def decode(
+        cls, msg: object, *, expected_run_id: str | None = None
+    ) -> DuelOutcome | DecodeError:
+        """Validate and decode."""
+
+        def body() -> DuelOutcome:
+            level, _, v = read_status(msg, DUEL_OUTCOME_NAME)
+            base = ("run_id", "duel_id", "first_id", "second_id", "kind")
+            require_keys(v, base, ("winner_id", "loser_id", "reason"))
+            run_id = check_run_id(v["run_id"])
+            check_expected_run(run_id, expected_run_id)
+            duel_id = parse_id(v["duel_id"], "duel_id")
+            first = parse_id(v["first_id"], "first_id")
+            second = parse_id(v["second_id"], "second_id")
+            kind = v["kind"]
+            if kind == OutcomeKind.DECISIVE.value:
+                require_keys(
+                    v, (*base, "winner_id", "loser_id"),
+                    context=" (must be absent when kind is decisive)",
+                )
+                _check_level(level, LEVEL_OK)
+                return cls(
+                    run_id, duel_id, first, second, OutcomeKind.DECISIVE,
+                    parse_id(v["winner_id"], "winner_id"), parse_id(v["loser_id"], "loser_id"),
+                )
+            if kind == OutcomeKind.INDIFFERENT.value:
+                require_keys(v, base, context=" (must be absent when kind is indifferent)")
+                _check_level(level, LEVEL_OK)
+                return cls(run_id, duel_id, first, second, OutcomeKind.INDIFFERENT)
+            if kind == OutcomeKind.FAILED.value:
+                require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
+                _check_level(level, LEVEL_ERROR)
+                return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])
+            raise FieldError("kind", f"{kind[:40]!r} is not decisive, indifferent or failed")
+
+        return guarded("duel_outcome", body)

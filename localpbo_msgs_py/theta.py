@@ -1,0 +1,210 @@
+"""θ-carrying messages: ``CandidateMsg`` and ``Incumbent`` on ``std_msgs/msg/Float64MultiArray``.
+
+Wire mapping (DESIGN.md §4): ``data`` is θ in the task's own units, so a ros2_control forward
+controller can consume the message unchanged. The ids travel in the one layout dimension::
+
+    layout.data_offset  = 0
+    layout.dim          = [MultiArrayDimension(label=LABEL, size=len(data), stride=len(data))]
+    LABEL (candidate)   = "kind=candidate;run=<run_id>;candidate=<candidate_id>"
+    LABEL (incumbent)   = "kind=incumbent;run=<run_id>;candidate=<candidate_id>;duels=<n_duels>"
+
+``<candidate_id>`` and ``<n_duels>`` are non-negative decimal integers without sign or leading
+zeros. Writers emit the keys in the order shown; readers accept any order but require exactly
+this key set.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from localpbo_msgs_py._guard import check_type, guarded
+from localpbo_msgs_py._validate import (
+    MAX_TEXT,
+    MAX_THETA_LEN,
+    check_expected_run,
+    check_id,
+    check_run_id,
+    check_vector,
+    parse_id,
+)
+from localpbo_msgs_py.errors import DecodeError, FieldError
+
+TYPE_NAME = "std_msgs/msg/Float64MultiArray"
+LABEL_FIELD = "layout.dim[0].label"
+
+
+def format_label(pairs: Sequence[tuple[str, str]]) -> str:
+    """``key=value`` pairs joined by ``;`` (the layout label grammar)."""
+    return ";".join(f"{k}={v}" for k, v in pairs)
+
+
+def parse_label(label: str, keys: Sequence[str]) -> dict[str, str]:
+    """Parse a layout label; exactly ``keys`` must be present, each once."""
+    if len(label) > MAX_TEXT:
+        raise FieldError(LABEL_FIELD, f"longer than {MAX_TEXT} characters")
+    out: dict[str, str] = {}
+    for part in label.split(";"):
+        key, sep, value = part.partition("=")
+        if not sep:
+            raise FieldError(LABEL_FIELD, f"{part[:80]!r} is not key=value (label {label[:120]!r})")
+        if key in out:
+            raise FieldError(LABEL_FIELD, f"key {key!r} appears more than once")
+        out[key] = value
+    for key in keys:
+        if key not in out:
+            raise FieldError(LABEL_FIELD, f"missing key {key!r} (label {label[:120]!r})")
+    for key in out:
+        if key not in keys:
+            raise FieldError(LABEL_FIELD, f"unexpected key {key!r}")
+    return out
+
+
+def _theta_message(label: str, theta: Sequence[float]) -> Float64MultiArray:
+    n = len(theta)
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
+    msg.layout.data_offset = 0
+    msg.data = [float(v) for v in theta]
+    return msg
+
+
+def _read_theta(
+    msg: object,
+    kind: str,
+    keys: Sequence[str],
+    *,
+    expected_dim: int | None,
+    lower: Sequence[float] | None,
+    upper: Sequence[float] | None,
+    max_len: int,
+) -> tuple[dict[str, str], tuple[float, ...]]:
+    check_type(msg, Float64MultiArray, TYPE_NAME)
+    assert isinstance(msg, Float64MultiArray)
+    dims = msg.layout.dim
+    if len(dims) != 1:
+        raise FieldError("layout.dim", f"must have exactly 1 dimension, has {len(dims)}")
+    if msg.layout.data_offset != 0:
+        raise FieldError("layout.data_offset", f"must be 0, got {msg.layout.data_offset}")
+    fields = parse_label(dims[0].label, keys)
+    if fields["kind"] != kind:
+        raise FieldError(LABEL_FIELD, f"kind is {fields['kind'][:40]!r}, expected {kind!r}")
+    n = len(msg.data)
+    if n > max_len:
+        raise FieldError("data", f"has {n} entries, more than the cap {max_len}")
+    if dims[0].size != n:
+        raise FieldError("layout.dim[0].size", f"is {dims[0].size}, data has {n} entries")
+    if dims[0].stride != n:
+        raise FieldError("layout.dim[0].stride", f"is {dims[0].stride}, data has {n} entries")
+    theta = check_vector(
+        msg.data, "data", expected_len=expected_dim, lower=lower, upper=upper, max_len=max_len
+    )
+    return fields, theta
+
+
+@dataclass(frozen=True)
+class CandidateMsg:
+    """A candidate to evaluate: θ (task units) with its run id and candidate id.
+
+    Topic ``/localpbo/candidate`` (optimizer → simulator / your controller).
+    """
+
+    run_id: str
+    candidate_id: int
+    theta: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run_id)
+        check_id(self.candidate_id, "candidate_id")
+        object.__setattr__(self, "theta", check_vector(self.theta, "theta"))
+
+    def encode(self) -> Float64MultiArray:
+        """The ROS message (see module docstring for the layout label)."""
+        label = format_label(
+            [("kind", "candidate"), ("run", self.run_id), ("candidate", str(self.candidate_id))]
+        )
+        return _theta_message(label, self.theta)
+
+    @classmethod
+    def decode(
+        cls,
+        msg: object,
+        *,
+        expected_run_id: str | None = None,
+        expected_dim: int | None = None,
+        lower: Sequence[float] | None = None,
+        upper: Sequence[float] | None = None,
+        max_len: int = MAX_THETA_LEN,
+    ) -> CandidateMsg | DecodeError:
+        """Validate and decode; bounds are in task units and inclusive."""
+
+        def body() -> CandidateMsg:
+            fields, theta = _read_theta(
+                msg, "candidate", ("kind", "run", "candidate"),
+                expected_dim=expected_dim, lower=lower, upper=upper, max_len=max_len,
+            )
+            run_id = check_run_id(fields["run"], "run")
+            check_expected_run(run_id, expected_run_id, "run")
+            cid = parse_id(fields["candidate"], "candidate")
+            return cls(run_id, cid, theta)
+
+        return guarded("candidate", body)
+
+
+@dataclass(frozen=True)
+class Incumbent:
+    """The current best candidate (from preferences only) after ``n_duels`` outcomes.
+
+    Topic ``/localpbo/incumbent`` (transient-local, depth 1: late joiners get the latest).
+    """
+
+    run_id: str
+    candidate_id: int
+    theta: tuple[float, ...]
+    n_duels: int
+
+    def __post_init__(self) -> None:
+        check_run_id(self.run_id)
+        check_id(self.candidate_id, "candidate_id")
+        check_id(self.n_duels, "n_duels")
+        object.__setattr__(self, "theta", check_vector(self.theta, "theta"))
+
+    def encode(self) -> Float64MultiArray:
+        """The ROS message (see module docstring for the layout label)."""
+        label = format_label(
+            [
+                ("kind", "incumbent"),
+                ("run", self.run_id),
+                ("candidate", str(self.candidate_id)),
+                ("duels", str(self.n_duels)),
+            ]
+        )
+        return _theta_message(label, self.theta)
+
+    @classmethod
+    def decode(
+        cls,
+        msg: object,
+        *,
+        expected_run_id: str | None = None,
+        expected_dim: int | None = None,
+        lower: Sequence[float] | None = None,
+        upper: Sequence[float] | None = None,
+        max_len: int = MAX_THETA_LEN,
+    ) -> Incumbent | DecodeError:
+        """Validate and decode; bounds are in task units and inclusive."""
+
+        def body() -> Incumbent:
+            fields, theta = _read_theta(
+                msg, "incumbent", ("kind", "run", "candidate", "duels"),
+                expected_dim=expected_dim, lower=lower, upper=upper, max_len=max_len,
+            )
+            run_id = check_run_id(fields["run"], "run")
+            check_expected_run(run_id, expected_run_id, "run")
+            cid = parse_id(fields["candidate"], "candidate")
+            n_duels = parse_id(fields["duels"], "duels")
+            return cls(run_id, cid, theta, n_duels)
+
+        return guarded("incumbent", body)
