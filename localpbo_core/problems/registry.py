@@ -1,0 +1,57 @@
+"""Problem registry: ``make_problem(name, **options)`` and ``available_problems()``.
+
+Synthetic functions live in ``localpbo_core.problems.synthetic``; the MuJoCo linear-policy
+tasks (``hopper``, ``walker2d``, ``swimmer``) come from ``localpbo_sims`` and are imported
+lazily, so ``localpbo_core`` works without mujoco/gymnasium installed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .base import Problem
+from .synthetic import SYNTHETIC_PROBLEMS, make_synthetic
+
+MUJOCO_PROBLEMS: tuple[str, ...] = ("hopper", "swimmer", "walker2d")
+"""Linear-policy tasks of ``localpbo_sims`` (paper Sec. 6 "Policy Search"; swimmer: demo)."""
+
+
+def available_problems() -> list[str]:
+    """Every registered problem name, sorted."""
+    return sorted((*SYNTHETIC_PROBLEMS, *MUJOCO_PROBLEMS))
+
+
+def make_problem(name: str, **options: Any) -> Problem:
+    """Create a problem by name.
+
+    Synthetic problems take no options. MuJoCo tasks accept the keyword options of
+    ``localpbo_sims.LinearPolicyTask`` (``alive_bonus``, ``weight_low``, ``weight_high``,
+    ``episode_steps``, ``cache_size``, ``value_range``).
+
+    Raises:
+        ValueError: unknown name (the message lists the valid ones) or unknown option.
+    """
+    if not isinstance(name, str) or name not in available_problems():
+        raise ValueError(f"problem: unknown problem {name!r}; valid: {available_problems()}")
+    if name in SYNTHETIC_PROBLEMS:
+        if options:
+            raise ValueError(f"{sorted(options)[0]}: {name} takes no options")
+        return make_synthetic(name)
+    try:
+        import localpbo_sims
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise ImportError(
+            f"problem {name!r} needs localpbo_sims (mujoco, gymnasium): {exc}"
+        ) from exc
+    allowed = {
+        "alive_bonus",
+        "weight_low",
+        "weight_high",
+        "episode_steps",
+        "cache_size",
+        "value_range",
+    }
+    unknown = sorted(set(options) - allowed)
+    if unknown:
+        raise ValueError(f"{unknown[0]}: unknown option for {name}; valid: {sorted(allowed)}")
+    return localpbo_sims.make_task(name, **options)

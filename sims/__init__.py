@@ -1,0 +1,43 @@
+"""localpbo_sims: MuJoCo linear-policy tasks for local PBO (paper Sec. 6, App. D.6).
+
+Imports only mujoco, gymnasium and numpy. Tasks satisfy ``localpbo_core``'s ``Problem``
+protocol structurally (``name``, ``dim``, ``value_range``, ``to_native``, ``evaluate``,
+``true_value``).
+"""
+
+from .ars import ArsPolicy, load_ars_policy
+from .episode import (
+    HOPPER_V5,
+    INVERTED_PENDULUM_V5,
+    SWIMMER_V5,
+    WALKER2D_V5,
+    EnvSpec,
+    EpisodeResult,
+    EpisodeRunner,
+)
+from .tasks import (
+    TRUE_VALUE_SEEDS,
+    VALUE_RANGES,
+    LinearPolicyTask,
+    ThetaFromWeights,
+    available_tasks,
+    make_task,
+)
+
+__all__ = [
+    "HOPPER_V5",
+    "INVERTED_PENDULUM_V5",
+    "SWIMMER_V5",
+    "TRUE_VALUE_SEEDS",
+    "VALUE_RANGES",
+    "WALKER2D_V5",
+    "ArsPolicy",
+    "EnvSpec",
+    "EpisodeResult",
+    "EpisodeRunner",
+    "LinearPolicyTask",
+    "ThetaFromWeights",
+    "available_tasks",
+    "load_ars_policy",
+    "make_task",
+]
