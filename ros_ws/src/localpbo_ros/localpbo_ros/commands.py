@@ -1,0 +1,199 @@
+"""``localpbo run | replay | bag-info``: the CLI subcommands of the ROS node suite.
+
+Hook into an argparse CLI with :func:`add_subcommands`; each subcommand sets ``func`` (call
+``args.func(args)``, which returns the exit code). Standalone: ``python -m
+localpbo_ros.commands run ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from localpbo_ros.params import ParameterError
+
+EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def _json_object(text: str) -> str:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError("must be a JSON object, e.g. '{\"batch_size\": 2}'")
+    return text
+
+
+def add_subcommands(subparsers: Any) -> None:
+    """Add ``run``, ``replay`` and ``bag-info`` to an argparse subparsers object."""
+    from localpbo_ros.suite import DEFAULTS
+
+    run = subparsers.add_parser(
+        "run",
+        help="tuning run over ROS topics (optimizer, simulator, oracle, recorder in-process)",
+        description="Bring up optimizer, simulator and oracle nodes plus the MCAP recorder in "
+        "one process (private context; nothing leaves the process) and tune until the budget "
+        f"is spent. Default: {DEFAULTS['algorithm']} on {DEFAULTS['task']}, budget "
+        f"{DEFAULTS['budget']}. Prints a summary: best candidate, duels, bag path.",
+    )
+    run.add_argument("--task", default=DEFAULTS["task"], help="task, e.g. swimmer, hopper")
+    run.add_argument("--algorithm", default=DEFAULTS["algorithm"], help="e.g. turpbo, sobol")
+    run.add_argument("--budget", type=int, default=DEFAULTS["budget"],
+                     help="evaluations incl. the initial design (0 = algorithm default)")
+    run.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="run seed")
+    run.add_argument("--initial-design", type=int, default=2, help="initial random points")
+    run.add_argument("--noise", type=float, default=0.1,
+                     help="oracle noise std as a fraction of the task's value range")
+    run.add_argument("--algorithm-options", type=_json_object, default="{}", metavar="JSON")
+    run.add_argument("--task-options", type=_json_object, default="{}", metavar="JSON",
+                     help="e.g. '{\"episode_steps\": 200, \"value_range\": 100}'")
+    run.add_argument("--failure-policy", choices=("retry", "stop"), default="retry")
+    run.add_argument("--out", default="runs", help="directory for the bag")
+    run.add_argument("--bag", default=None, help="bag path (default OUT/RUN_ID.mcap)")
+    run.add_argument("--run-id", default=None, help="run id (default run-<UTC time>)")
+    run.add_argument("--resume", default=None, metavar="BAG",
+                     help="continue the run recorded in BAG (its config rules); the new bag "
+                     "holds the old history plus the rest, each duel once")
+    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.set_defaults(func=cmd_run)
+
+    replay = subparsers.add_parser(
+        "replay", help="re-publish a bag with its timing, or --verify it offline",
+        description="Publish the recorded topics with their original timing and QoS (like "
+        "ros2 bag play), or with --verify rebuild the optimizer from the recorded config and "
+        "outcomes and check it proposes exactly the recorded candidates.",
+    )
+    replay.add_argument("bag", help=".mcap file")
+    replay.add_argument("--verify", action="store_true", help="offline check; prints OK or "
+                        "the first mismatch (exit 1)")
+    replay.add_argument("--rate", type=float, default=1.0, help="playback speed factor")
+    replay.add_argument("--loop", action="store_true", help="play again and again (Ctrl-C)")
+    replay.add_argument("--topics", nargs="+", default=None, help="only these topics")
+    replay.set_defaults(func=cmd_replay)
+
+    info = subparsers.add_parser("bag-info", help="summarise a bag (topics, counts, time span)")
+    info.add_argument("bag", help=".mcap file")
+    info.set_defaults(func=cmd_bag_info)
+
+
+def run_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """Optimizer-node parameters from ``run`` arguments."""
+    run_id = args.run_id or time.strftime("run-%Y%m%dT%H%M%SZ", time.gmtime())
+    return {
+        "run_id": run_id, "algorithm": args.algorithm, "task": args.task,
+        "budget": args.budget, "seed": args.seed, "initial_design": args.initial_design,
+        "noise_fraction": float(args.noise), "algorithm_options": args.algorithm_options,
+        "task_options": args.task_options, "failure_policy": args.failure_policy,
+    }
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """``localpbo run``."""
+    from localpbo_ros.bagtools import load_run
+    from localpbo_ros.suite import default_bag, run_suite
+
+    settings = run_settings(args)
+    if args.resume is not None:
+        try:
+            settings["run_id"] = load_run(args.resume).config.run_id
+        except (OSError, ValueError) as exc:
+            print(f"localpbo run: --resume: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+    bag = Path(args.bag) if args.bag else default_bag(args.out, settings["run_id"])
+    if args.resume is not None and bag.resolve() == Path(args.resume).resolve():
+        bag = bag.with_name(bag.stem + "-resumed.mcap")
+    bar = None
+    progress = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=0, unit="eval", desc="localpbo run", dynamic_ncols=True)
+
+        def progress(used: int, budget: int) -> None:
+            assert bar is not None
+            if (used, budget) != (bar.n, bar.total):
+                bar.total = budget
+                bar.n = used
+                bar.refresh()
+    try:
+        summary = run_suite(settings, bag, resume=args.resume, on_progress=progress)
+    except ParameterError as exc:
+        print(f"localpbo run: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    finally:
+        if bar is not None:
+            bar.close()
+    print(summary.format())
+    return EXIT_OK if summary.state == "done" else EXIT_RUN_FAILED
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``localpbo replay``."""
+    if args.verify:
+        from localpbo_ros.replay import verify
+
+        try:
+            report = verify(args.bag)
+        except (OSError, ValueError) as exc:
+            print(f"localpbo replay: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        print(report.format())
+        return EXIT_OK if report.ok else EXIT_RUN_FAILED
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from localpbo_ros.dds import host_scope
+    from localpbo_ros.replay import play
+
+    host_scope()
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node("localpbo_replay", context=ctx, start_parameter_services=False)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    try:
+        sent = play(args.bag, node, executor, rate=args.rate, loops=0 if args.loop else 1,
+                    topics=args.topics)
+        print(f"published {sent} messages from {args.bag}")
+        return EXIT_OK
+    except (OSError, ValueError) as exc:
+        print(f"localpbo replay: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        return EXIT_OK
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def cmd_bag_info(args: argparse.Namespace) -> int:
+    """``localpbo bag-info``."""
+    from localpbo_msgs_py.bag import summarize
+
+    try:
+        print(summarize(args.bag).format())
+    except (OSError, ValueError) as exc:
+        print(f"localpbo bag-info: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m localpbo_ros.commands run|replay|bag-info ...``."""
+    parser = argparse.ArgumentParser(prog="localpbo")
+    add_subcommands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,101 @@
+"""Run-config following for the simulator and oracle nodes.
+
+They take everything about the run (task, its options, seed, noise) from the latched
+``/localpbo/run_config`` the optimizer publishes. With parameter ``run_id`` empty they serve
+the latest run whose config they received (a config with a new run id switches them over and
+clears their state); otherwise only that run's. Messages that arrive before the config are
+kept (at most ``max_pending``) and handled once it is known.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.context import Context
+
+from localpbo_msgs_py import DecodeError, RunConfig
+from localpbo_msgs_py.topics import RUN_CONFIG
+from localpbo_ros.base import SuiteNode
+from localpbo_ros.params import Param
+
+FOLLOWER_PARAMS = [
+    Param("run_id", "", "Only serve this run; empty = the first run config received."),
+    Param("max_pending", 1000, "Messages kept while waiting for the run config, and duels "
+          "kept while waiting for episode results.", int_range=(1, 1_000_000)),
+]
+
+
+class FollowerNode(SuiteNode, abc.ABC):
+    """A node that serves one run described by the latched run config."""
+
+    def __init__(
+        self,
+        name: str,
+        params: list[Param],
+        *,
+        context: Context | None = None,
+        overrides: dict[str, Any] | None = None,
+        cli_args: list[str] | None = None,
+    ) -> None:
+        super().__init__(name, FOLLOWER_PARAMS + params, context=context, overrides=overrides,
+                         cli_args=cli_args)
+        self.config: RunConfig | None = None
+        self._early: list[tuple[Callable[[Any], None], Any]] = []
+        self.subscribe(RUN_CONFIG, self._on_config)
+        self.state = "waiting"
+
+    @property
+    def run_id(self) -> str | None:
+        """The served run, once known."""
+        return None if self.config is None else self.config.run_id
+
+    def _on_config(self, msg: object) -> None:
+        wanted = self.settings["run_id"] or None
+        decoded = RunConfig.decode(msg, expected_run_id=wanted)
+        if isinstance(decoded, DecodeError):
+            self.drop("wrong_run" if "wrong run" in decoded.problem else "malformed",
+                      str(decoded))
+            return
+        if self.config is not None:
+            if decoded.run_id == self.config.run_id:
+                if decoded.to_json() != self.config.to_json():
+                    self.drop("conflicting_config",
+                              f"run {decoded.run_id!r} already has another config")
+                return
+            self.get_logger().info(f"switching from run {self.config.run_id!r} to "
+                                   f"{decoded.run_id!r}")
+            self.config = None
+            self.reset()
+        try:
+            self.adopt(decoded)
+        except Exception as exc:  # the config names a task or option this node cannot build
+            self.state = "failed"
+            self.get_logger().error(f"cannot serve run {decoded.run_id!r}: {exc}")
+            self.publish_status(2, str(exc))
+            return
+        self.config = decoded
+        self.status_run_id = decoded.run_id
+        self.state = "running"
+        early, self._early = self._early, []
+        for handler, held in early:
+            handler(held)
+
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Forget everything about the previous run."""
+
+    @abc.abstractmethod
+    def adopt(self, config: RunConfig) -> None:
+        """Prepare for ``config`` (build the task); raise if impossible."""
+
+    def hold(self, handler: Callable[[Any], None], msg: object) -> bool:
+        """Keep ``msg`` for ``handler`` until the config arrives; True if it was held."""
+        if self.config is not None:
+            return False
+        if len(self._early) >= self.settings["max_pending"]:
+            self.drop("buffer_full", "message before run config, buffer full")
+        else:
+            self._early.append((handler, msg))
+        return True

@@ -1,0 +1,290 @@
+"""``optimizer_node``: owns the ask/tell optimizer; publishes candidates and duel requests.
+
+Topics: publishes ``/localpbo/run_config`` (latched), ``/localpbo/candidate``,
+``/localpbo/duel_request``, ``/localpbo/incumbent`` (latched), ``/localpbo/status``;
+subscribes ``/localpbo/duel_outcome``. The algorithm lives in ``localpbo_core``; the
+bookkeeping in :class:`localpbo_ros.driver.Driver`.
+
+Failure policy (parameter ``failure_policy``): a duel whose outcome is ``failed`` (the
+simulator raised, the oracle lacked a result) or that has no outcome within ``duel_timeout_s``
+is either retried (``retry``: the duel's candidates and request are published again, at most
+``max_retries`` times per duel; the simulator re-runs failed episodes, the oracle answers
+anew) or ends the run (``stop``, and ``retry`` once the retries are spent): the node goes to
+state ``failed``, reports the reason on the status topic and stops publishing work. The
+optimizer never sees a failed duel.
+
+Late joiners: while a step is open, the pending duels' candidates and requests are published
+again every ``republish_period_s`` (idempotent for the other nodes).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from rclpy.context import Context
+
+from localpbo_core.optimizers import available_optimizers
+from localpbo_core.problems import available_problems
+from localpbo_msgs_py import DecodeError, DuelOutcome, RunConfig
+from localpbo_msgs_py.topics import CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, INCUMBENT, RUN_CONFIG
+from localpbo_ros.base import SuiteNode
+from localpbo_ros.driver import FAILURE_POLICIES, Driver, make_run_config, rebuild
+from localpbo_ros.params import INT_MAX, Param, ParameterError
+
+PARAMS = [
+    Param("run_id", "localpbo", "Run id stamped on every message ([A-Za-z0-9][A-Za-z0-9_.-]*)."),
+    Param("algorithm", "turpbo", "Preference optimizer.", choices=tuple(available_optimizers())),
+    Param("algorithm_options", "{}", "Algorithm options as a JSON object, e.g. "
+          '{"batch_size": 2}.', json_object=True),
+    Param("task", "swimmer", "Task (problem) to tune.", choices=tuple(available_problems())),
+    Param("task_options", "{}", "Task options as a JSON object, e.g. {\"episode_steps\": 200}.",
+          json_object=True),
+    Param("budget", 0, "Evaluations incl. the initial design; 0 = algorithm default.",
+          int_range=(0, 100_000)),
+    Param("initial_design", 2, "Shared random initial points (paper App. D.1).",
+          int_range=(2, 100_000)),
+    Param("seed", 0, "Run seed (optimizer, episode seeds, oracle noise).",
+          int_range=(0, INT_MAX)),
+    Param("noise_fraction", 0.1, "Oracle noise std as a fraction of the task's value range.",
+          float_range=(0.0, 10.0)),
+    Param("failure_policy", "retry", "What a failed or timed-out duel does.",
+          choices=FAILURE_POLICIES),
+    Param("max_retries", 2, "Retries per duel under failure_policy=retry.", int_range=(0, 100)),
+    Param("duel_timeout_s", 120.0, "Seconds without progress before pending duels time out.",
+          float_range=(0.05, 86_400.0)),
+    Param("republish_period_s", 2.0, "Re-publish pending work this often (late joiners).",
+          float_range=(0.01, 3600.0)),
+    Param("min_subscribers", 1, "Start once candidate and duel_request topics have this many "
+          "subscribers.", int_range=(0, 1000)),
+]
+
+TICK_S = 0.05
+"""Period of the start / timeout / re-publish check."""
+
+_FIELD_TO_PARAM = {
+    "algorithm": "algorithm", "problem": "task", "task": "task", "budget": "budget",
+    "initial_design": "initial_design", "seed": "seed", "noise_fraction": "noise_fraction",
+    "value_range": "task_options", "run_id": "run_id",
+}
+
+
+def config_from_settings(s: dict[str, Any]) -> RunConfig:
+    """The run config the parameters describe; ParameterError names the bad parameter."""
+    opt = dict(s["algorithm_options"])
+    if "initial_design" in opt:
+        raise ParameterError("algorithm_options", "set initial_design with its own parameter")
+    opt["initial_design"] = s["initial_design"]
+    try:
+        return make_run_config(
+            run_id=s["run_id"], algorithm=s["algorithm"], task=s["task"], seed=s["seed"],
+            budget=s["budget"] or None, optimizer_options=opt, task_options=s["task_options"],
+            noise_fraction=s["noise_fraction"], failure_policy=s["failure_policy"],
+            max_retries=s["max_retries"],
+        )
+    except (ValueError, TypeError) as exc:
+        field = str(exc).split(":", 1)[0].strip()
+        if field in _FIELD_TO_PARAM:
+            name = _FIELD_TO_PARAM[field]
+        elif field in s["task_options"]:
+            name = "task_options"
+        else:
+            name = "algorithm_options"
+        raise ParameterError(name, str(exc)) from None
+
+
+def settings_from_config(config: RunConfig) -> dict[str, Any]:
+    """Parameter values that reproduce ``config`` (used by ``run --resume``)."""
+    opt = dict(config.options.get("optimizer", {}))
+    initial = int(opt.pop("initial_design", 2))
+    failure = config.options.get("failure", {})
+    return {
+        "run_id": config.run_id, "algorithm": config.algorithm,
+        "algorithm_options": json.dumps(opt), "task": config.task,
+        "task_options": json.dumps(config.options.get("task", {})), "budget": config.budget,
+        "initial_design": initial, "seed": config.seed,
+        "noise_fraction": float(config.options.get("oracle", {}).get("noise_fraction", 0.1)),
+        "failure_policy": failure.get("policy", "retry"),
+        "max_retries": int(failure.get("max_retries", 2)),
+    }
+
+
+class OptimizerNode(SuiteNode):
+    """The optimizer node (see module docstring).
+
+    Args:
+        context: rclpy context.
+        overrides: parameter values.
+        cli_args: ROS arguments.
+        resume_outcomes: recorded duel outcomes to re-feed before starting (``run --resume``);
+            the rebuilt run continues with the first unanswered duel.
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        overrides: dict[str, Any] | None = None,
+        cli_args: list[str] | None = None,
+        resume_outcomes: Sequence[DuelOutcome] = (),
+    ) -> None:
+        super().__init__("optimizer", PARAMS, context=context, overrides=overrides,
+                         cli_args=cli_args)
+        self.config = config_from_settings(self.settings)
+        self.status_run_id = self.config.run_id
+        if resume_outcomes:
+            self.driver: Driver = rebuild(self.config, resume_outcomes).driver
+        else:
+            self.driver = Driver(self.config)
+        self.resumed_duels = self.driver.n_duels
+        self.finished = False
+        self.error = ""
+        self._attempts: dict[int, int] = {}
+        self._deadline = float("inf")
+        self._last_publish = 0.0
+        self._started = False
+        self._cpu0 = 0.0
+        self.started_at = 0.0
+        self.finished_at = 0.0
+        self.cpu_seconds = 0.0  # process CPU time from start to finish (benchmark)
+        self._pub_config = self.publisher(RUN_CONFIG)
+        self._pub_candidate = self.publisher(CANDIDATE)
+        self._pub_request = self.publisher(DUEL_REQUEST)
+        self._pub_incumbent = self.publisher(INCUMBENT)
+        self.subscribe(DUEL_OUTCOME, self._on_outcome)
+        self._pub_config.publish(self.config.encode())
+        self.state = "waiting"
+        self._timer = self.create_timer(TICK_S, self._tick)
+
+    # ------------------------------------------------------------------ timing
+    def _now(self) -> float:
+        return time.monotonic()
+
+    def _tick(self) -> None:
+        if self.finished:
+            return
+        if not self._started:
+            need = self.settings["min_subscribers"]
+            if (self._pub_candidate.get_subscription_count() >= need
+                    and self._pub_request.get_subscription_count() >= need):
+                self._start()
+            return
+        now = self._now()
+        if self.driver.step_open and now >= self._deadline:
+            timeout = self.settings["duel_timeout_s"]
+            for req in self.driver.pending_requests():
+                self._failure(req.duel_id, f"timeout: no outcome within {timeout} s")
+                if self.finished:
+                    return
+        elif self.driver.step_open and now - self._last_publish >= self.settings[
+                "republish_period_s"]:
+            self._publish_pending()
+
+    def _start(self) -> None:
+        self._started = True
+        self.started_at = self._now()
+        self._cpu0 = time.process_time()
+        self.state = "running"
+        if self.driver.done:
+            self._finish()
+        elif self.driver.step_open:  # resumed in the middle of a step
+            self._publish_incumbent()
+            self._publish_pending()
+            self._deadline = self._now() + self.settings["duel_timeout_s"]
+        else:
+            self._next_step()
+
+    # ------------------------------------------------------------------ publishing
+    def _next_step(self) -> None:
+        work = self.driver.ask()
+        for cand in work.candidates:
+            self._pub_candidate.publish(cand.encode())
+        for req in work.requests:
+            self._pub_request.publish(req.encode())
+        self._last_publish = self._now()
+        self._deadline = self._last_publish + self.settings["duel_timeout_s"]
+
+    def _publish_pending(self) -> None:
+        for cand in self.driver.pending_candidates():
+            self._pub_candidate.publish(cand.encode())
+        for req in self.driver.pending_requests():
+            self._pub_request.publish(req.encode())
+        self._last_publish = self._now()
+
+    def _publish_incumbent(self) -> None:
+        inc = self.driver.incumbent()
+        if inc is not None:
+            self._pub_incumbent.publish(inc.encode())
+
+    # ------------------------------------------------------------------ outcomes
+    def _on_outcome(self, msg: object) -> None:
+        decoded = DuelOutcome.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(decoded, DecodeError):
+            reason = "wrong_run" if "wrong run" in decoded.problem else "malformed"
+            self.drop(reason, str(decoded))
+            return
+        if self.finished or not self._started:
+            self.drop("not_running", f"duel {decoded.duel_id} arrived while {self.state}")
+            return
+        verdict = self.driver.offer(decoded)
+        if verdict.reason == "failed":
+            self.counters["failed_duels"] += 1
+            self._failure(decoded.duel_id, verdict.detail)
+            return
+        if verdict.reason == "duplicate":
+            self.counters["outcomes_duplicate"] += 1
+            return
+        if not verdict.accepted:
+            self.drop(verdict.reason, verdict.detail)
+            return
+        self.counters["duels_done"] = self.driver.n_duels
+        self._last_publish = self._now()  # progress: no re-publish right away
+        self._deadline = self._last_publish + self.settings["duel_timeout_s"]
+        if not self.driver.step_open:
+            self._publish_incumbent()
+            if self.driver.done:
+                self._finish()
+            else:
+                self._next_step()
+
+    def _failure(self, duel_id: int, reason: str) -> None:
+        policy = self.settings["failure_policy"]
+        tries = self._attempts.get(duel_id, 0)
+        if policy == "stop" or tries >= self.settings["max_retries"]:
+            self._stop(f"duel {duel_id} failed ({reason}); failure_policy={policy}, "
+                       f"retries used {tries}")
+            return
+        self._attempts[duel_id] = tries + 1
+        self.counters["retries"] += 1
+        self.get_logger().warning(f"duel {duel_id} failed ({reason}); retry {tries + 1}")
+        self._publish_pending()
+        self._deadline = self._now() + self.settings["duel_timeout_s"]
+
+    def _finish(self) -> None:
+        self.finished = True
+        self.finished_at = self._now()
+        self.cpu_seconds = time.process_time() - self._cpu0
+        self.state = "done"
+        self.publish_status(0, f"run complete: {self.driver.n_duels} duels")
+
+    def _stop(self, reason: str) -> None:
+        self.finished = True
+        self.finished_at = self._now()
+        self.error = reason
+        self.state = "failed"
+        self.get_logger().error(reason)
+        self.publish_status(2, reason)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``ros2 run localpbo_ros optimizer_node --ros-args -p key:=value ...``."""
+    from localpbo_ros.entry import run_node
+
+    return run_node(OptimizerNode, argv, stop_when_finished=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

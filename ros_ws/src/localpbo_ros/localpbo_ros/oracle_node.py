@@ -1,0 +1,170 @@
+"""``oracle_node``: answers duel requests from episode returns (paper Sec. 3, eq. noise/pi).
+
+Subscribes ``/localpbo/run_config``, ``/localpbo/episode_result``, ``/localpbo/duel_request``;
+publishes ``/localpbo/duel_outcome`` and ``/localpbo/status``. Results and duels are matched by
+id, never by arrival order; a request waits until both episode results are known.
+
+The comparison is ``localpbo_core.problems.PreferenceOracle.compare`` with noise std =
+``noise_fraction`` × the task's value range (run config ``options.oracle``), its generator
+seeded per duel by ``SeedSequence([run seed, ORACLE_TAG, duel id])``: the answer to a duel is
+a function of the run seed, the duel id and the two returns only, so duplicates, late joiners
+and resumed runs get the same answer. A decisive answer is stored and re-published for a
+repeated request. A failed episode result fails the duels waiting on it (and is then
+forgotten, so a retry waits for the fresh result).
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import numpy as np
+from rclpy.context import Context
+
+from localpbo_core.problems import PreferenceOracle
+from localpbo_msgs_py import DecodeError, DuelOutcome, DuelRequest, EpisodeResult, RunConfig
+from localpbo_msgs_py.records import EpisodeStatus
+from localpbo_msgs_py.topics import DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
+from localpbo_ros.driver import build_problem, section
+from localpbo_ros.follower import FollowerNode
+
+ORACLE_TAG = 0x0AC1
+"""Tag mixed into the per-duel oracle seed."""
+
+
+def duel_seed(run_seed: int, duel_id: int) -> int:
+    """Seed of the oracle noise for one duel."""
+    ss = np.random.SeedSequence([run_seed, ORACLE_TAG, duel_id])
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
+def judge(problem: Any, noise_fraction: float, run_seed: int, request: DuelRequest,
+          value_first: float, value_second: float) -> DuelOutcome:
+    """The decisive outcome of ``request`` (eq. pi: first wins iff y_first > y_second)."""
+    oracle = PreferenceOracle(problem, noise_fraction, seed=duel_seed(run_seed, request.duel_id))
+    first_wins = oracle.compare(value_first, value_second)
+    return DuelOutcome.decisive(request, request.first_id if first_wins else request.second_id)
+
+
+class OracleNode(FollowerNode):
+    """The preference-oracle node (see module docstring)."""
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        overrides: dict[str, Any] | None = None,
+        cli_args: list[str] | None = None,
+    ) -> None:
+        super().__init__("oracle", [], context=context, overrides=overrides, cli_args=cli_args)
+        self._problem: Any = None
+        self._noise = 0.0
+        self._results: dict[int, EpisodeResult] = {}
+        self._waiting: dict[int, DuelRequest] = {}
+        self._answered: dict[int, DuelOutcome] = {}
+        self._pub = self.publisher(DUEL_OUTCOME)
+        self.subscribe(EPISODE_RESULT, self._on_result)
+        self.subscribe(DUEL_REQUEST, self._on_request)
+
+    def reset(self) -> None:
+        """Forget the previous run's results and duels."""
+        self._results.clear()
+        self._waiting.clear()
+        self._answered.clear()
+
+    def adopt(self, config: RunConfig) -> None:
+        """Build the task (for its value range) and read the noise fraction."""
+        self._problem = build_problem(config.task, section(config, "task"))
+        self._noise = float(section(config, "oracle").get("noise_fraction", 0.1))
+        PreferenceOracle(self._problem, self._noise, seed=0)  # validates noise vs value range
+
+    def _reason(self, err: DecodeError) -> str:
+        return "wrong_run" if "wrong run" in err.problem else "malformed"
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_result(self, msg: object) -> None:
+        if self.hold(self._on_result, msg):
+            return
+        assert self.config is not None
+        res = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(res, DecodeError):
+            self.drop(self._reason(res), str(res))
+            return
+        known = self._results.get(res.candidate_id)
+        if res.status is EpisodeStatus.OK and known is not None and (
+                known.status is EpisodeStatus.OK):
+            if known.episode_return != res.episode_return:
+                self.drop("conflicting_result",
+                          f"candidate {res.candidate_id}: {res.episode_return} after "
+                          f"{known.episode_return}")
+            else:
+                self.counters["results_repeated"] += 1
+            return
+        self._results[res.candidate_id] = res
+        self._resolve_waiting()
+
+    def _on_request(self, msg: object) -> None:
+        if self.hold(self._on_request, msg):
+            return
+        assert self.config is not None
+        req = DuelRequest.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(req, DecodeError):
+            self.drop(self._reason(req), str(req))
+            return
+        done = self._answered.get(req.duel_id)
+        if done is not None:
+            if (done.first_id, done.second_id) != (req.first_id, req.second_id):
+                self.drop("conflicting_request", f"duel {req.duel_id} changed its candidates")
+            else:
+                self.counters["outcomes_repeated"] += 1
+                self._pub.publish(done.encode())
+            return
+        waiting = self._waiting.get(req.duel_id)
+        if waiting is not None and waiting != req:
+            self.drop("conflicting_request", f"duel {req.duel_id} changed its candidates")
+            return
+        if waiting is None and len(self._waiting) >= self.settings["max_pending"]:
+            self.drop("buffer_full", f"more than {self.settings['max_pending']} duels waiting")
+            return
+        self._waiting[req.duel_id] = req
+        self._resolve_waiting()
+
+    # ------------------------------------------------------------------ matching
+    def _resolve_waiting(self) -> None:
+        assert self.config is not None
+        consumed: set[int] = set()
+        for duel_id in sorted(self._waiting):
+            req = self._waiting[duel_id]
+            first = self._results.get(req.first_id)
+            second = self._results.get(req.second_id)
+            failed = [r for r in (first, second)
+                      if r is not None and r.status is EpisodeStatus.FAILED]
+            if failed:
+                reason = "; ".join(f"episode of candidate {r.candidate_id} failed: {r.error}"
+                                   for r in failed)[:4000]
+                outcome = DuelOutcome.failed(req, reason)
+                consumed.update(r.candidate_id for r in failed)
+                self.counters["duels_failed"] += 1
+            elif first is not None and second is not None:
+                assert first.episode_return is not None and second.episode_return is not None
+                outcome = judge(self._problem, self._noise, self.config.seed, req,
+                                first.episode_return, second.episode_return)
+                self._answered[duel_id] = outcome
+                self.counters["duels_answered"] += 1
+            else:
+                continue
+            del self._waiting[duel_id]
+            self._pub.publish(outcome.encode())
+        for cid in consumed:
+            self._results.pop(cid, None)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``ros2 run localpbo_ros oracle_node [--ros-args -p run_id:=...]``."""
+    from localpbo_ros.entry import run_node
+
+    return run_node(OracleNode, argv, stop_when_finished=False)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

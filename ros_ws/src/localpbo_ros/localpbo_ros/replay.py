@@ -1,0 +1,167 @@
+"""``localpbo replay BAG``: re-publish a bag like ``ros2 bag play``, or verify it offline.
+
+Play: every recorded message (optionally only ``topics``) is published at its original
+offset from the first message divided by ``rate``, ``loops`` times; each topic's publisher uses
+the QoS recorded in the channel's ``offered_qos_profiles`` (DESIGN.md §5), so latched topics
+stay latched; without it, reliable/volatile/depth 10 as rosbag2 does.
+
+Verify (DESIGN.md §3): rebuild the optimizer from the recorded run config, re-feed the
+recorded outcomes with the node's own acceptance rule, and check that it proposes exactly the
+recorded candidates (θ compared as decoded floats, never as CDR bytes) and duels.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.duration import Duration
+from rclpy.executors import Executor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from localpbo_msgs_py.bag import message_class, read_messages, summarize
+from localpbo_msgs_py.qos_yaml import parse_offered_qos
+from localpbo_ros.bagtools import load_run
+from localpbo_ros.driver import rebuild
+
+_HISTORY = {"keep_last": HistoryPolicy.KEEP_LAST, "keep_all": HistoryPolicy.KEEP_ALL}
+_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE,
+                "best_effort": ReliabilityPolicy.BEST_EFFORT}
+_DURABILITY = {"volatile": DurabilityPolicy.VOLATILE,
+               "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}
+INFINITE_SEC = 9223372036
+
+
+def qos_from_metadata(text: str) -> QoSProfile:
+    """The playback QoS of a channel from its ``offered_qos_profiles`` YAML.
+
+    With several offered profiles the most permissive compatible choice is made as rosbag2
+    does: reliable only if all publishers were reliable, transient-local only if all were.
+    """
+    profiles = parse_offered_qos(text)
+    if not profiles:
+        return QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+    reliable = all(p.get("reliability") == "reliable" for p in profiles)
+    durable = all(p.get("durability") == "transient_local" for p in profiles)
+    first = profiles[0]
+    qos = QoSProfile(
+        history=_HISTORY.get(first.get("history", "keep_last"), HistoryPolicy.KEEP_LAST),
+        depth=max(int(first.get("depth", 10)), 1),
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
+    )
+    deadline = first.get("deadline", {})
+    if deadline and deadline.get("sec", INFINITE_SEC) < INFINITE_SEC:
+        qos.deadline = Duration(seconds=deadline["sec"], nanoseconds=deadline.get("nsec", 0))
+    return qos
+
+
+def play(
+    path: str | os.PathLike[str],
+    node: Node,
+    executor: Executor,
+    *,
+    rate: float = 1.0,
+    loops: int = 1,
+    topics: Iterable[str] | None = None,
+    should_stop: Callable[[], bool] = lambda: False,
+) -> int:
+    """Publish the bag's messages from ``node`` with their original timing; returns count.
+
+    ``loops`` passes over the bag (0: until ``should_stop`` or Ctrl-C). ``executor`` is spun
+    while waiting (so in-process subscribers get the messages).
+    """
+    if not rate > 0:
+        raise ValueError(f"rate: must be > 0, got {rate}")
+    if loops < 0:
+        raise ValueError(f"loop: must be >= 0, got {loops}")
+    summary = summarize(path)
+    wanted = None if topics is None else set(topics)
+    known = {t.topic for t in summary.topics}
+    if wanted is not None and not wanted <= known:
+        raise ValueError(f"topics: not in the bag: {sorted(wanted - known)}")
+    publishers: dict[str, Any] = {}
+    for t in summary.topics:
+        if wanted is None or t.topic in wanted:
+            publishers[t.topic] = node.create_publisher(
+                message_class(t.type_name), t.topic, qos_from_metadata(t.offered_qos_profiles)
+            )
+    sent = 0
+    done_loops = 0
+    while loops == 0 or done_loops < loops:
+        done_loops += 1
+        t0_bag: int | None = None
+        t0_wall = time.monotonic()
+        for rec in read_messages(path, topics=publishers.keys()):
+            if t0_bag is None:
+                t0_bag = rec.log_time_ns
+            due = t0_wall + (rec.log_time_ns - t0_bag) / 1e9 / rate
+            while True:
+                left = due - time.monotonic()
+                if left <= 0 or should_stop():
+                    break
+                executor.spin_once(timeout_sec=min(left, 0.05))
+            if should_stop():
+                return sent
+            publishers[rec.topic].publish(rec.message)
+            sent += 1
+    return sent
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Result of :func:`verify`."""
+
+    ok: bool
+    candidates_checked: int
+    duels_checked: int
+    outcomes_used: int
+    unpublished: int
+    mismatch: str
+
+    def format(self) -> str:
+        """``OK ...`` or ``MISMATCH ...``."""
+        if self.ok:
+            extra = (f"; {self.unpublished} proposed candidate(s) were not recorded (run "
+                     "stopped before publishing them)") if self.unpublished else ""
+            return (f"OK: {self.candidates_checked} candidates and {self.duels_checked} duels "
+                    f"reproduced from {self.outcomes_used} recorded outcomes{extra}")
+        return f"MISMATCH: {self.mismatch}"
+
+
+def verify(path: str | os.PathLike[str]) -> VerifyReport:
+    """Rebuild the optimizer offline and compare with the recorded candidates and duels."""
+    run = load_run(path)
+    rebuilt = rebuild(run.config, run.outcomes)
+    proposed = {c.candidate_id: c for c in rebuilt.proposed}
+    used = rebuilt.driver.n_duels
+    for cid in sorted(run.candidates):
+        rec = run.candidates[cid]
+        mine = proposed.get(cid)
+        if mine is None:
+            return VerifyReport(False, 0, 0, used, 0,
+                                f"candidate {cid} is recorded but was not proposed")
+        if mine.theta != rec.theta:
+            diff = next(i for i, (a, b) in enumerate(zip(mine.theta, rec.theta, strict=True))
+                        if a != b)
+            return VerifyReport(
+                False, 0, 0, used, 0,
+                f"candidate {cid}: θ[{diff}] recorded {rec.theta[diff]!r}, "
+                f"rebuilt {mine.theta[diff]!r}",
+            )
+    duels = rebuilt.driver.optimizer.history.duels
+    for did in sorted(run.requests):
+        req = run.requests[did]
+        if did >= len(duels) or (duels[did].first, duels[did].second) != (
+                req.first_id, req.second_id):
+            mine_txt = "none" if did >= len(duels) else f"{duels[did].first} vs {duels[did].second}"
+            return VerifyReport(False, 0, 0, used, 0,
+                                f"duel {did}: recorded {req.first_id} vs {req.second_id}, "
+                                f"rebuilt {mine_txt}")
+    unpublished = len(set(proposed) - set(run.candidates))
+    return VerifyReport(True, len(run.candidates), len(run.requests), used, unpublished, "")

@@ -1,0 +1,127 @@
+"""``sim_node``: runs one episode per candidate and publishes its return.
+
+Subscribes ``/localpbo/run_config`` and ``/localpbo/candidate``; publishes
+``/localpbo/episode_result`` and ``/localpbo/status``. θ arrives in task units and is mapped
+back to [0,1]^d through the run config's box. The episode seed is the in-process loop's
+(``localpbo_core.loop.episode_seed(run seed, candidate id)``), so a candidate's return does not
+depend on arrival order or on which process evaluates it.
+
+Idempotent by id: a candidate seen again with the same θ gets its stored result re-published
+(no second episode); a failed episode is re-run when its candidate is published again (retry).
+An evaluator that raises, or returns a non-finite value, yields a ``failed`` episode result.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from rclpy.context import Context
+
+from localpbo_core.loop import episode_seed
+from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig
+from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
+from localpbo_ros.driver import build_problem, section
+from localpbo_ros.follower import FollowerNode
+
+Evaluator = Callable[[RunConfig, int, np.ndarray], float]
+"""``(run config, candidate id, θ in [0,1]^d) -> episode return``."""
+
+
+def unit_theta(config: RunConfig, native: tuple[float, ...]) -> np.ndarray:
+    """θ in [0,1]^d from task units (inverse of the affine ``to_native``)."""
+    lo = np.asarray(config.lower)
+    hi = np.asarray(config.upper)
+    return np.clip((np.asarray(native) - lo) / (hi - lo), 0.0, 1.0)
+
+
+class SimNode(FollowerNode):
+    """The simulator node (see module docstring).
+
+    Args:
+        evaluator: replaces the task's own episode (tests, your own simulator).
+    """
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        overrides: dict[str, Any] | None = None,
+        cli_args: list[str] | None = None,
+        evaluator: Evaluator | None = None,
+    ) -> None:
+        super().__init__("simulator", [], context=context, overrides=overrides,
+                         cli_args=cli_args)
+        self._evaluator = evaluator
+        self._problem: Any = None
+        self._thetas: dict[int, tuple[float, ...]] = {}
+        self._results: dict[int, EpisodeResult] = {}
+        self._pub = self.publisher(EPISODE_RESULT)
+        self.subscribe(CANDIDATE, self._on_candidate)
+
+    def reset(self) -> None:
+        """Forget the previous run's candidates and results."""
+        self._thetas.clear()
+        self._results.clear()
+
+    def adopt(self, config: RunConfig) -> None:
+        """Build the task of the run (unless an evaluator was given)."""
+        if self._evaluator is None:
+            self._problem = build_problem(config.task, section(config, "task"))
+            if self._problem.dim != config.dim:
+                raise ValueError(f"dim: task has {self._problem.dim}, config {config.dim}")
+
+    def _evaluate(self, config: RunConfig, cid: int, theta01: np.ndarray) -> float:
+        if self._evaluator is not None:
+            return float(self._evaluator(config, cid, theta01))
+        return float(self._problem.evaluate(theta01, seed=episode_seed(config.seed, cid)))
+
+    def _on_candidate(self, msg: object) -> None:
+        if self.hold(self._on_candidate, msg):
+            return
+        config = self.config
+        assert config is not None
+        cand = CandidateMsg.decode(
+            msg, expected_run_id=config.run_id, expected_dim=config.dim,
+            lower=config.lower, upper=config.upper,
+        )
+        if isinstance(cand, DecodeError):
+            self.drop("wrong_run" if "wrong run" in cand.problem else "malformed", str(cand))
+            return
+        known = self._thetas.get(cand.candidate_id)
+        if known is not None and known != cand.theta:
+            self.drop("conflicting_candidate", f"candidate {cand.candidate_id} changed θ")
+            return
+        self._thetas[cand.candidate_id] = cand.theta
+        cached = self._results.get(cand.candidate_id)
+        if cached is not None:
+            self.counters["results_repeated"] += 1
+            self._pub.publish(cached.encode())
+            return
+        try:
+            value = self._evaluate(config, cand.candidate_id, unit_theta(config, cand.theta))
+            if not math.isfinite(value):
+                raise ValueError(f"episode return is not finite ({value})")
+            result = EpisodeResult.ok(config.run_id, cand.candidate_id, value)
+            self._results[cand.candidate_id] = result
+            self.counters["episodes"] += 1
+        except Exception as exc:  # any simulator error becomes a failed episode result
+            self.counters["episodes_failed"] += 1
+            self.get_logger().warning(f"episode of candidate {cand.candidate_id} failed: {exc}")
+            text = f"{type(exc).__name__}: {exc}"[:4000] or "error"
+            result = EpisodeResult.failed(config.run_id, cand.candidate_id, text)
+        self._pub.publish(result.encode())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``ros2 run localpbo_ros sim_node [--ros-args -p run_id:=...]``."""
+    from localpbo_ros.entry import run_node
+
+    return run_node(SimNode, argv, stop_when_finished=False)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

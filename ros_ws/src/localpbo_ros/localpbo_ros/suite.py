@@ -1,0 +1,181 @@
+"""``localpbo run``: the three nodes and the recorder in one process (DESIGN.md §8).
+
+A private ``Context`` with ``ROS_AUTOMATIC_DISCOVERY_RANGE=OFF`` (nothing leaves the process)
+and one ``SingleThreadedExecutor`` driven from this thread. The optimizer starts once the
+recorder is matched with the simulator's and oracle's publishers and the simulator, oracle
+and recorder subscribe to its topics, so the bag holds the whole exchange.
+
+Resume (``resume=BAG``): the old bag is copied into the new one first (original times), the
+optimizer is rebuilt by re-feeding the recorded outcomes (``driver.rebuild``), and the run
+continues with the first unanswered duel, so every duel appears exactly once.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+
+from localpbo_msgs_py.bag import BagWriter
+from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
+from localpbo_ros.bagtools import copy_into, load_run
+from localpbo_ros.dds import in_process_scope
+from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
+from localpbo_ros.oracle_node import OracleNode
+from localpbo_ros.params import ParameterError
+from localpbo_ros.recorder import RecorderNode
+from localpbo_ros.sim_node import Evaluator, SimNode
+
+DEFAULTS: dict[str, Any] = {
+    "task": "swimmer",
+    "algorithm": "turpbo",
+    "budget": 16,
+    "seed": 0,
+}
+"""The embedded default: a short TuRPBO run on the 16-D Swimmer linear policy."""
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What ``localpbo run`` prints at the end."""
+
+    run_id: str
+    bag: str
+    state: str
+    error: str
+    duels: int
+    resumed_duels: int
+    evaluations: int
+    best_id: int | None
+    best_theta: tuple[float, ...]
+    seconds: float
+    loop_seconds: float
+    loop_cpu_seconds: float
+    recorded: int
+
+    def format(self) -> str:
+        """Human-readable summary."""
+        lines = [
+            f"run {self.run_id}: {self.state}" + (f" ({self.error})" if self.error else ""),
+            f"duels: {self.duels}" + (f" ({self.resumed_duels} from the resumed bag)"
+                                      if self.resumed_duels else ""),
+            f"evaluations: {self.evaluations}",
+            f"time: {self.seconds:.1f} s",
+        ]
+        if self.best_id is not None:
+            theta = ", ".join(f"{v:.4f}" for v in self.best_theta)
+            lines.append(f"best candidate (from preferences): id {self.best_id}, θ = [{theta}]")
+        lines.append(f"bag: {self.bag}")
+        return "\n".join(lines)
+
+
+def run_suite(
+    settings: dict[str, Any],
+    bag: str | os.PathLike[str],
+    *,
+    resume: str | os.PathLike[str] | None = None,
+    record: bool = True,
+    evaluator: Evaluator | None = None,
+    on_progress: Callable[[int, int], None] | None = None,
+    timeout_s: float | None = None,
+) -> RunSummary:
+    """Run optimizer, simulator, oracle (and recorder) until the budget is spent.
+
+    Args:
+        settings: optimizer-node parameters (see ``optimizer_node.PARAMS``); ignored except
+            for the timing ones when resuming (the bag's config rules).
+        bag: output ``.mcap`` path.
+        resume: a bag of a stopped/crashed run to continue.
+        record: run the recorder (False only for the benchmark).
+        evaluator: replaces the simulator's episode (tests).
+        on_progress: called with (evaluations used, budget) after each spin.
+        timeout_s: give up (state ``timeout``) after this many seconds.
+
+    Raises:
+        ParameterError: a refused setting (named).
+    """
+    in_process_scope()
+    start = time.monotonic()
+    outcomes: tuple[Any, ...] = ()
+    settings = dict(settings)
+    if resume is not None:
+        recorded = load_run(resume)
+        kept = {k: settings[k] for k in ("duel_timeout_s", "republish_period_s") if k in settings}
+        settings = {**settings_from_config(recorded.config), **kept}
+        outcomes = recorded.outcomes
+    ctx = Context()
+    rclpy.init(context=ctx)
+    nodes: list[Any] = []
+    writer: BagWriter | None = None
+    executor = SingleThreadedExecutor(context=ctx)
+    refused = False
+    try:
+        if record:
+            writer = BagWriter(bag)
+            if resume is not None:
+                copy_into(resume, writer)
+            nodes.append(RecorderNode(context=ctx, writer=writer))
+        nodes.append(SimNode(context=ctx, evaluator=evaluator))
+        nodes.append(OracleNode(context=ctx))
+        for node in nodes:
+            executor.add_node(node)
+        if record:
+            deadline = time.monotonic() + 10.0
+            while not nodes[0].matched([EPISODE_RESULT.name, DUEL_OUTCOME.name]):
+                executor.spin_once(timeout_sec=0.01)
+                if time.monotonic() > deadline:
+                    raise RuntimeError("recorder did not match the simulator/oracle publishers")
+        settings["min_subscribers"] = 2 if record else 1
+        try:
+            opt = OptimizerNode(context=ctx, overrides=settings, resume_outcomes=outcomes)
+        except ParameterError:
+            refused = True
+            raise
+        nodes.append(opt)
+        executor.add_node(opt)
+        budget = opt.driver.optimizer.budget
+        while not opt.finished:
+            executor.spin_once(timeout_sec=0.05)
+            if on_progress is not None:
+                on_progress(opt.driver.optimizer.evaluations_used, budget)
+            if timeout_s is not None and time.monotonic() - start > timeout_s:
+                opt.error, opt.state = f"no result within {timeout_s} s", "timeout"
+                break
+        # let the recorder take the last messages (final outcome, incumbent, status)
+        settle = time.monotonic() + 0.3
+        while time.monotonic() < settle:
+            executor.spin_once(timeout_sec=0.02)
+        inc = opt.driver.incumbent()
+        return RunSummary(
+            opt.config.run_id, str(bag) if record else "", opt.state, opt.error,
+            opt.driver.n_duels, opt.resumed_duels, opt.driver.optimizer.evaluations_used,
+            None if inc is None else inc.candidate_id, () if inc is None else inc.theta,
+            time.monotonic() - start,
+            max(opt.finished_at - opt.started_at, 0.0),
+            opt.cpu_seconds,
+            nodes[0].recorded if record else 0,
+        )
+    finally:
+        for node in nodes:
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown()
+        if writer is not None:
+            writer.close()
+            if refused:  # nothing ran: leave no empty bag behind
+                Path(bag).unlink(missing_ok=True)
+        rclpy.shutdown(context=ctx)
+
+
+def default_bag(out: str | os.PathLike[str], run_id: str) -> Path:
+    """``OUT/<run_id>.mcap`` (the directory is created)."""
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder / f"{run_id}.mcap"

@@ -1,0 +1,29 @@
+"""ament_python package: executables land in lib/localpbo_ros/ where `ros2 run` looks."""
+
+from setuptools import setup
+
+PACKAGE = "localpbo_ros"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=[PACKAGE],
+    package_data={PACKAGE: ["localhost_only.xml"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", [f"{PACKAGE}/localhost_only.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    description="ROS 2 nodes of localpbo: optimizer, MuJoCo simulator and preference oracle.",
+    license="MIT",
+    entry_points={
+        "console_scripts": [
+            f"optimizer_node = {PACKAGE}.optimizer_node:main",
+            f"sim_node = {PACKAGE}.sim_node:main",
+            f"oracle_node = {PACKAGE}.oracle_node:main",
+            f"recorder_node = {PACKAGE}.recorder:main",
+        ],
+    },
+)
