@@ -1,0 +1,407 @@
+"""The ``localpbo`` command: ``localpbo bench`` and ``localpbo demo``.
+
+``bench`` runs the in-process loop (:mod:`localpbo_core.loop`) for every (algorithm, seed)
+and writes ``results.csv`` (one row per evaluation, columns ``RESULT_COLUMNS``),
+``summary.csv`` and ``best_seen.png``; ``demo`` is a short real tuning run on the small
+MuJoCo task (Swimmer, 16-D linear policy), TuRPBO against Sobol.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import csv
+import importlib.util
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from localpbo_core.loop import RESULT_COLUMNS, EvaluationRecord, run_loop
+from localpbo_core.optimizers.registry import (
+    available_optimizers,
+    make_optimizer,
+    optimizer_options,
+)
+
+#: Tag mixed into the oracle seed: ``SeedSequence([run_seed, ORACLE_TAG])``.
+ORACLE_TAG = 0x0AC1
+DEMO_PROBLEM = "swimmer"
+DEMO_BUDGET = 40
+
+
+def oracle_seed(run_seed: int) -> int:
+    """The seed of the preference oracle's noise for one run."""
+    ss = np.random.SeedSequence([run_seed, ORACLE_TAG])
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
+def _parse_seeds(text: str) -> list[int]:
+    seeds: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        if "-" in part[1:]:
+            lo, hi = part.split("-", 1)
+            seeds.extend(range(int(lo), int(hi) + 1))
+        else:
+            seeds.append(int(part))
+    if not seeds or any(s < 0 for s in seeds):
+        raise ValueError("--seeds: expected non-negative integers such as 0,1,2 or 0-4")
+    if len(set(seeds)) != len(seeds):
+        raise ValueError("--seeds: repeated seed")
+    return seeds
+
+
+def _parse_value(text: str) -> object:
+    try:
+        return ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return text
+
+
+def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, dict]:
+    """``key=value`` (every algorithm that accepts ``key``) or ``alg.key=value``."""
+    per_alg: dict[str, dict] = {a: {} for a in algorithms}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"--option: expected key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        key = key.strip()
+        parsed = _parse_value(value.strip())
+        targets = list(algorithms)
+        if "." in key:
+            alg, key = key.split(".", 1)
+            if alg not in algorithms:
+                raise ValueError(f"--option {item!r}: algorithm {alg!r} is not in --algorithm")
+            targets = [alg]
+        accepted = [a for a in targets if key in optimizer_options(a)]
+        if not accepted:
+            raise ValueError(f"--option {key!r}: not an option of {', '.join(targets)}")
+        for a in accepted:
+            per_alg[a][key] = parsed
+    return per_alg
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="localpbo",
+        description="Local preferential Bayesian optimization: ROS 2 runs, replay, benchmarks.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    bench = sub.add_parser(
+        "bench",
+        help="run algorithms on a problem with a noisy preference oracle",
+        description=(
+            "Run the in-process loop (optimizer -> evaluation -> noisy duel) for every "
+            "algorithm and seed. Writes OUT/results.csv (one row per evaluation), "
+            "OUT/summary.csv and OUT/best_seen.png, and prints a final table."
+        ),
+    )
+    bench.add_argument("--problem", required=True, help="problem name, e.g. hartmann6, hopper")
+    bench.add_argument(
+        "--algorithm",
+        required=True,
+        help=f"comma-separated algorithms; available: {', '.join(available_optimizers())}",
+    )
+    bench.add_argument(
+        "--seeds", default="0", help="comma-separated run seeds or ranges, e.g. 0,1,2 or 0-4"
+    )
+    bench.add_argument(
+        "--budget",
+        type=int,
+        default=None,
+        help="evaluations per run, initial design included (default: initial design + 10 d; "
+        "62 on Hartmann 6 = 2 + 10 d, paper App. D.1)",
+    )
+    bench.add_argument("--out", required=True, help="output directory (created if needed)")
+    bench.add_argument(
+        "--initial-design",
+        type=int,
+        default=2,
+        help="shared random initial points per run (paper: 2; policy search 5 d)",
+    )
+    bench.add_argument(
+        "--noise",
+        type=float,
+        default=0.1,
+        help="oracle noise std as a fraction of the problem's value range (paper: 0.1)",
+    )
+    bench.add_argument(
+        "--batch-size", type=int, default=None, help="candidates per iteration q (default 1)"
+    )
+    bench.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="algorithm option, repeatable; KEY=VALUE goes to every listed algorithm that "
+        "accepts KEY, ALG.KEY=VALUE to one (e.g. turpbo.acquisition=qeubo)",
+    )
+    bench.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    for sp in (bench,):
+        _add_threads(sp)
+    demo = sub.add_parser(
+        "demo",
+        help="short real tuning run (TuRPBO vs Sobol on the Swimmer linear policy)",
+        description=(
+            f"TuRPBO against Sobol on the {DEMO_PROBLEM} linear-policy task (16-D), one seed, "
+            f"{DEMO_BUDGET} evaluations each, 10%% oracle noise; about two minutes."
+        ),
+    )
+    demo.add_argument("--out", default="localpbo_demo", help="output directory")
+    demo.add_argument("--seed", type=int, default=0, help="run seed")
+    _add_threads(demo)
+    _add_ros_commands(sub)
+    return parser
+
+
+def _add_ros_commands(sub: argparse._SubParsersAction) -> None:
+    """Add ``run``, ``replay`` and ``bag-info``, contributed by the ROS node package.
+
+    They live with the nodes (``localpbo_ros.commands``) so that nothing in ``localpbo_core``
+    imports ROS; without the ROS package installed the ``localpbo`` command simply lacks them.
+    """
+    if importlib.util.find_spec("localpbo_ros") is None:
+        return
+    from localpbo_ros.commands import add_subcommands
+
+    add_subcommands(sub)
+
+
+def _add_threads(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--torch-threads",
+        type=int,
+        default=None,
+        help="torch intra-op threads (default: torch's choice). The surrogate works on small "
+        "matrices; on a busy machine 1 thread can be many times faster",
+    )
+
+
+def bench(
+    problem_name: str,
+    algorithms: Sequence[str],
+    seeds: Sequence[int],
+    out: Path,
+    budget: int | None = None,
+    initial_design: int = 2,
+    noise: float = 0.1,
+    options: dict[str, dict] | None = None,
+    progress: bool = True,
+) -> list[EvaluationRecord]:
+    """Run every (algorithm, seed), write the outputs into ``out`` and return all records.
+
+    Every configuration is validated (problem, algorithms, options, budget) before any run.
+    """
+    from tqdm import tqdm
+
+    from localpbo_core.problems import PreferenceOracle, make_problem
+
+    problem = make_problem(problem_name)
+    options = options or {a: {} for a in algorithms}
+    if budget is None:
+        budget = initial_design + 10 * problem.dim
+    for alg in algorithms:  # fail at start, naming the option
+        make_optimizer(
+            alg,
+            problem.dim,
+            seed=0,
+            budget=budget,
+            initial_design=initial_design,
+            **options[alg],
+        )
+    PreferenceOracle(problem, noise_fraction=noise, seed=0)
+    out.mkdir(parents=True, exist_ok=True)
+    records: list[EvaluationRecord] = []
+    total = budget * len(seeds) * len(algorithms)
+    with tqdm(total=total, disable=not progress, unit="eval", dynamic_ncols=True) as bar:
+        for alg in algorithms:
+            for seed in seeds:
+                bar.set_description(f"{alg} seed {seed}")
+                opt = make_optimizer(
+                    alg,
+                    problem.dim,
+                    seed=seed,
+                    budget=budget,
+                    initial_design=initial_design,
+                    **options[alg],
+                )
+                oracle = PreferenceOracle(problem, noise_fraction=noise, seed=oracle_seed(seed))
+                records.extend(
+                    run_loop(
+                        problem,
+                        opt,
+                        oracle,
+                        seed,
+                        algorithm=alg,
+                        on_evaluation=lambda _r: bar.update(1),
+                    )
+                )
+                write_results(records, out / "results.csv")
+    summary = summarize(records)
+    write_summary(summary, out / "summary.csv")
+    plot_best_seen(records, out / "best_seen.png")
+    return records
+
+
+def write_results(records: Sequence[EvaluationRecord], path: Path) -> None:
+    """``results.csv``: one row per evaluation."""
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(RESULT_COLUMNS)
+        for r in records:
+            writer.writerow(r.as_row())
+
+
+def summarize(records: Sequence[EvaluationRecord]) -> list[dict[str, object]]:
+    """Per algorithm: mean ± std over runs of final best-seen, final cumulative and the
+    optimizer's total seconds per run (sum of ``decision_seconds``)."""
+    runs: dict[tuple[str, int], list[EvaluationRecord]] = {}
+    for r in records:
+        runs.setdefault((r.algorithm, r.seed), []).append(r)
+    rows = []
+    for alg in dict.fromkeys(r.algorithm for r in records):
+        finals = [v for (a, _), v in runs.items() if a == alg]
+        best = np.array([v[-1].best_seen for v in finals])
+        cum = np.array([v[-1].cumulative for v in finals])
+        secs = np.array([sum(x.decision_seconds for x in v) for v in finals])
+        rows.append(
+            {
+                "problem": finals[0][0].problem,
+                "algorithm": alg,
+                "runs": len(finals),
+                "evaluations": len(finals[0]),
+                "best_seen_mean": best.mean(),
+                "best_seen_std": best.std(ddof=1) if len(best) > 1 else 0.0,
+                "cumulative_mean": cum.mean(),
+                "cumulative_std": cum.std(ddof=1) if len(cum) > 1 else 0.0,
+                "optimizer_seconds_mean": secs.mean(),
+                "optimizer_seconds_std": secs.std(ddof=1) if len(secs) > 1 else 0.0,
+            }
+        )
+    return rows
+
+
+def write_summary(rows: Sequence[dict[str, object]], path: Path) -> None:
+    """``summary.csv``: the rows of :func:`summarize`."""
+    with path.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def format_table(rows: Sequence[dict[str, object]]) -> str:
+    """The final table printed by ``bench``."""
+    lines = [
+        f"{'algorithm':<12} {'runs':>4} {'best_seen (mean ± std)':>26} "
+        f"{'cumulative (mean ± std)':>28} {'optimizer s/run':>18}"
+    ]
+    for r in rows:
+        lines.append(
+            f"{r['algorithm']:<12} {r['runs']:>4} "
+            f"{r['best_seen_mean']:>13.4g} ± {r['best_seen_std']:<10.3g} "
+            f"{r['cumulative_mean']:>15.5g} ± {r['cumulative_std']:<10.4g} "
+            f"{r['optimizer_seconds_mean']:>9.3g} ± {r['optimizer_seconds_std']:<6.2g}"
+        )
+    return "\n".join(lines)
+
+
+def plot_best_seen(records: Sequence[EvaluationRecord], path: Path) -> None:
+    """Mean ± std of best-seen and cumulative vs evaluation, one line per algorithm."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for alg in dict.fromkeys(r.algorithm for r in records):
+        by_seed: dict[int, list[EvaluationRecord]] = {}
+        for r in records:
+            if r.algorithm == alg:
+                by_seed.setdefault(r.seed, []).append(r)
+        n = min(len(v) for v in by_seed.values())
+        x = np.arange(1, n + 1)
+        for ax, key in zip(axes, ("best_seen", "cumulative"), strict=True):
+            y = np.array([[getattr(r, key) for r in v[:n]] for v in by_seed.values()])
+            m, s = y.mean(0), y.std(0)
+            ax.plot(x, m, label=alg)
+            ax.fill_between(x, m - s, m + s, alpha=0.2)
+    title = records[0].problem if records else ""
+    for ax, key in zip(axes, ("best-seen f_true", "cumulative f_true"), strict=True):
+        ax.set_xlabel("evaluation")
+        ax.set_ylabel(key)
+        ax.set_title(f"{title}: {key} (mean ± std over seeds)")
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``localpbo`` console script."""
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    if hasattr(args, "func"):  # a command contributed by the ROS package
+        return int(args.func(args))
+    try:
+        if args.torch_threads is not None:
+            if args.torch_threads < 1:
+                raise ValueError(f"--torch-threads: must be >= 1, got {args.torch_threads}")
+            import torch
+
+            torch.set_num_threads(args.torch_threads)
+        if args.command == "demo":
+            problem, algorithms, seeds = DEMO_PROBLEM, ["turpbo", "sobol"], [args.seed]
+            budget, initial_design, noise = DEMO_BUDGET, 2, 0.1
+            per_alg = {a: {} for a in algorithms}
+            progress = True
+        else:
+            algorithms = [a.strip().lower() for a in args.algorithm.split(",") if a.strip()]
+            if not algorithms:
+                raise ValueError("--algorithm: empty")
+            for a in algorithms:
+                if a not in available_optimizers():
+                    raise ValueError(
+                        f"--algorithm: unknown algorithm {a!r}; "
+                        f"available: {', '.join(available_optimizers())}"
+                    )
+            if len(set(algorithms)) != len(algorithms):
+                raise ValueError("--algorithm: repeated algorithm")
+            seeds = _parse_seeds(args.seeds)
+            problem = args.problem
+            budget, initial_design = args.budget, args.initial_design
+            noise = args.noise
+            if not math.isfinite(noise) or noise < 0:
+                raise ValueError(f"--noise: must be a finite number >= 0, got {noise}")
+            per_alg = _parse_options(args.option, algorithms)
+            if args.batch_size is not None:
+                for a in algorithms:
+                    per_alg[a]["batch_size"] = args.batch_size
+            progress = not args.no_progress
+        out = Path(args.out)
+        records = bench(
+            problem,
+            algorithms,
+            seeds,
+            out,
+            budget=budget,
+            initial_design=initial_design,
+            noise=noise,
+            options=per_alg,
+            progress=progress,
+        )
+    except ValueError as exc:
+        parser.exit(2, f"localpbo: error: {exc}\n")
+    print(format_table(summarize(records)))
+    print(f"results: {out / 'results.csv'}")
+    print(f"summary: {out / 'summary.csv'}")
+    print(f"plot:    {out / 'best_seen.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

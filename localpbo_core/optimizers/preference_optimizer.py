@@ -1,0 +1,370 @@
+"""The ask/tell base class shared by every preference optimizer (DESIGN.md §3).
+
+Bookkeeping that every algorithm needs lives here:
+
+* candidate ids ``0, 1, 2, ...`` in proposal order;
+* the budget counted in *evaluations* (paper App. D.1, "Evaluation and comparison
+  budgets": with king-of-the-hill duels, ``2 + 10d`` evaluations give ``1 + 10d``
+  comparisons);
+* the shared initial design (App. D.1, "same initial data"): ``initial_design`` uniform
+  points drawn from a generator derived only from the seed (never from the algorithm), whose
+  best is found by sequential duels (candidate ``i+1`` against the current winner); an
+  optional ``warm_start`` vector replaces the first design point;
+* validation of outcomes *before* any state changes (a rejected ``tell`` leaves the
+  optimizer untouched, so the ROS node can drop and count bad messages);
+* the incumbent, defined from preferences only (the current king of the hill).
+
+Subclasses implement :meth:`PreferenceOptimizer._propose` (the next work after the initial
+design) and :meth:`PreferenceOptimizer._on_step_complete` (update their own state once every
+duel of an ask has been answered).
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+
+#: Tag mixed into the seed of the shared initial design; independent of the algorithm.
+INITIAL_DESIGN_TAG = 0x1D51
+#: Tag mixed into per-step seeds of algorithms (``SeedSequence([seed, TAG, step, ...])``).
+STEP_TAG = 0x57E9
+
+
+class InvalidOutcome(ValueError):
+    """A ``tell`` was rejected; the optimizer's state is unchanged."""
+
+
+class BudgetExhausted(RuntimeError):
+    """``ask`` was called although every evaluation of the budget has been proposed."""
+
+
+class PendingDuels(RuntimeError):
+    """``ask`` was called while duels of the previous ask are still unanswered."""
+
+
+@dataclass(frozen=True)
+class History:
+    """Everything that happened so far, in order.
+
+    Attributes:
+        candidates: every proposed candidate (index == id).
+        duels: every duel asked, in ask order.
+        outcomes: every accepted outcome, in tell order.
+    """
+
+    candidates: tuple[Candidate, ...]
+    duels: tuple[Duel, ...]
+    outcomes: tuple[Outcome, ...]
+
+
+def check_theta(theta: object, dim: int, field: str) -> np.ndarray:
+    """Return ``theta`` as a read-only float64 vector in [0,1]^dim or raise ValueError."""
+    try:
+        arr = np.array(theta, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{field}: not a numeric vector ({exc})") from exc
+    if arr.shape != (dim,):
+        raise ValueError(f"{field}: expected length {dim}, got {arr.size}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{field}: contains NaN or inf")
+    if np.any(arr < 0.0) or np.any(arr > 1.0):
+        raise ValueError(f"{field}: must lie in [0,1]^{dim} (normalised parameters)")
+    arr.setflags(write=False)
+    return arr
+
+
+def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
+    """A numpy Generator for one decision step, derived from ``(seed, step, extra)``.
+
+    Every random choice of an algorithm flows from such a generator, so the same seed and
+    the same outcomes reproduce the same candidates bit for bit.
+    """
+    return np.random.default_rng(np.random.SeedSequence([seed, STEP_TAG, step, *extra]))
+
+
+class PreferenceOptimizer(abc.ABC):
+    """Deterministic ask/tell state machine over (config, seed, outcomes).
+
+    Args:
+        dim: dimension d of theta (theta lives in [0,1]^d).
+        seed: non-negative integer; all randomness derives from it.
+        budget: total number of evaluations (candidates), initial design included.
+        initial_design: number of initial uniform points (>= 2), shared by all algorithms.
+        warm_start: optional existing controller in [0,1]^d replacing the first design point.
+    """
+
+    #: Registry name, set by subclasses.
+    name: str = "base"
+
+    def __init__(
+        self,
+        dim: int,
+        seed: int,
+        budget: int,
+        initial_design: int = 2,
+        warm_start: Sequence[float] | np.ndarray | None = None,
+    ) -> None:
+        if isinstance(dim, bool) or not isinstance(dim, int | np.integer) or dim < 1:
+            raise ValueError(f"dim: must be an integer >= 1, got {dim!r}")
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+            raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
+        if (
+            isinstance(initial_design, bool)
+            or not isinstance(initial_design, int | np.integer)
+            or initial_design < 2
+        ):
+            raise ValueError(f"initial_design: must be an integer >= 2, got {initial_design!r}")
+        if isinstance(budget, bool) or not isinstance(budget, int | np.integer):
+            raise ValueError(f"budget: must be an integer, got {budget!r}")
+        if budget < initial_design:
+            raise ValueError(
+                f"budget: {budget} is smaller than the initial design ({initial_design})"
+            )
+        self.dim = int(dim)
+        self.seed = int(seed)
+        self._budget = int(budget)
+        self.initial_design = int(initial_design)
+        self.warm_start = None if warm_start is None else check_theta(warm_start, dim, "warm_start")
+        design_rng = np.random.default_rng(np.random.SeedSequence([self.seed, INITIAL_DESIGN_TAG]))
+        design = design_rng.random((self.initial_design, self.dim))
+        if self.warm_start is not None:
+            design[0] = self.warm_start
+        self._design = design
+        self._candidates: list[Candidate] = []
+        self._duels: list[Duel] = []
+        self._outcomes: list[Outcome] = []
+        # Duels of the current ask not answered yet, and the outcomes of the current ask.
+        self._pending: list[Duel] = []
+        self._step_outcomes: list[Outcome] = []
+        self._step_candidates: tuple[Candidate, ...] = ()
+        self._incumbent_id: int | None = None
+        self._step = 0  # number of completed asks
+
+    # ------------------------------------------------------------------ public state
+    @property
+    def budget(self) -> int:
+        """Total number of evaluations allowed (App. D.1)."""
+        return self._budget
+
+    @property
+    def evaluations_used(self) -> int:
+        """Number of candidates proposed so far (each is evaluated exactly once)."""
+        return len(self._candidates)
+
+    @property
+    def done(self) -> bool:
+        """True when the budget is spent and no duel is pending."""
+        return self.evaluations_used >= self._budget and not self._pending
+
+    @property
+    def pending_duels(self) -> tuple[Duel, ...]:
+        """Duels asked but not answered yet."""
+        return tuple(self._pending)
+
+    @property
+    def incumbent(self) -> Candidate | None:
+        """The preference-defined best candidate (current king of the hill), or None."""
+        if self._incumbent_id is None:
+            return None
+        return self._candidates[self._incumbent_id]
+
+    @property
+    def history(self) -> History:
+        """Candidates, duels and outcomes so far."""
+        return History(tuple(self._candidates), tuple(self._duels), tuple(self._outcomes))
+
+    @property
+    def in_initial_design(self) -> bool:
+        """True while the shared initial design is being evaluated and dueled."""
+        return self.evaluations_used < self.initial_design or (
+            self.evaluations_used == self.initial_design and bool(self._pending)
+        )
+
+    # ------------------------------------------------------------------ data for models
+    def train_inputs(self) -> np.ndarray:
+        """All evaluated thetas, shape (n, d), row i = candidate i."""
+        if not self._candidates:
+            return np.empty((0, self.dim))
+        return np.stack([c.theta for c in self._candidates])
+
+    def comparisons(self) -> np.ndarray:
+        """All accepted outcomes as an (m, 2) int64 array of ``[winner, loser]`` ids."""
+        if not self._outcomes:
+            return np.empty((0, 2), dtype=np.int64)
+        return np.array([[o.winner, o.loser] for o in self._outcomes], dtype=np.int64)
+
+    # ------------------------------------------------------------------ ask / tell
+    def ask(self) -> Ask:
+        """Return the next candidates to evaluate and the duels wanted.
+
+        Raises:
+            PendingDuels: duels of the previous ask are not all answered.
+            BudgetExhausted: every evaluation of the budget has been proposed.
+        """
+        if self._pending:
+            raise PendingDuels(
+                f"{len(self._pending)} duel(s) of the previous ask are still pending"
+            )
+        if self.evaluations_used >= self._budget:
+            raise BudgetExhausted(f"budget of {self._budget} evaluations is spent")
+        n = self.evaluations_used
+        if n < self.initial_design:
+            if n == 0:
+                thetas = [self._design[0], self._design[1]]
+                new = self._register(thetas)
+                duels = [Duel(new[1].id, new[0].id)]
+            else:
+                new = self._register([self._design[n]])
+                duels = [Duel(new[0].id, self._require_incumbent())]
+            ask = Ask(tuple(new), tuple(duels))
+        else:
+            try:
+                ask = self._propose(self._budget - n)
+                if not ask.duels:
+                    raise RuntimeError(f"{self.name}: an ask must contain at least one duel")
+            except BaseException:
+                del self._candidates[n:]  # a failed ask leaves no trace
+                raise
+        self._pending = list(ask.duels)
+        self._duels.extend(ask.duels)
+        self._step_outcomes = []
+        self._step_candidates = ask.candidates
+        return ask
+
+    def tell(self, outcomes: Iterable[Outcome]) -> None:
+        """Record duel outcomes (a subset or all of the pending duels).
+
+        Everything is validated before any state changes.
+
+        Raises:
+            InvalidOutcome: an unknown id, a duel that was not asked (or is not pending),
+                a repeated outcome, or an object that is not an outcome.
+        """
+        outs = list(outcomes)
+        pending = list(self._pending)
+        matched: list[Duel] = []
+        for out in outs:
+            duel = self._match(out, pending)
+            pending.remove(duel)
+            matched.append(duel)
+        # --- validated: commit
+        self._pending = pending
+        for out in outs:
+            self._outcomes.append(out)
+            self._step_outcomes.append(out)
+        if not self._pending and (outs or self._step_candidates):
+            step_outcomes = tuple(self._step_outcomes)
+            candidates = self._step_candidates
+            self._step_outcomes = []
+            self._step_candidates = ()
+            if self.evaluations_used <= self.initial_design:
+                self._update_king(step_outcomes)
+            else:
+                self._on_step_complete(candidates, step_outcomes)
+            self._step += 1
+
+    # ------------------------------------------------------------------ helpers
+    def _match(self, out: object, pending: list[Duel]) -> Duel:
+        """Find the pending duel answered by ``out`` or raise InvalidOutcome.
+
+        This is the single place where outcome kinds are dispatched: a win/loss
+        ``Outcome`` today; "indifferent" and "failed" outcome kinds will be added here.
+        """
+        if not isinstance(out, Outcome):
+            raise InvalidOutcome(f"not an Outcome: {out!r}")
+        n = self.evaluations_used
+        for cid in (out.winner, out.loser):
+            if isinstance(cid, bool) or not isinstance(cid, int | np.integer):
+                raise InvalidOutcome(f"candidate id must be an integer, got {cid!r}")
+            if not 0 <= cid < n:
+                raise InvalidOutcome(f"unknown candidate id {cid} (ids are 0..{n - 1})")
+        if out.winner == out.loser:
+            raise InvalidOutcome(f"self-duel {out.winner} vs {out.loser}")
+        pair = {int(out.winner), int(out.loser)}
+        for duel in pending:
+            if {duel.first, duel.second} == pair:
+                return duel
+        if any({d.first, d.second} == pair for d in self._duels):
+            raise InvalidOutcome(f"repeated outcome for duel {sorted(pair)}")
+        raise InvalidOutcome(f"duel {sorted(pair)} was not asked")
+
+    def _register(self, thetas: Sequence[np.ndarray]) -> list[Candidate]:
+        """Give fresh ids to ``thetas`` (clipped to [0,1]^d, float64, read-only)."""
+        new = []
+        for theta in thetas:
+            arr = np.clip(np.array(theta, dtype=np.float64).reshape(self.dim), 0.0, 1.0)
+            if not np.all(np.isfinite(arr)):
+                raise RuntimeError(f"{self.name} proposed a non-finite candidate")
+            arr.setflags(write=False)
+            cand = Candidate(len(self._candidates), arr)
+            self._candidates.append(cand)
+            new.append(cand)
+        return new
+
+    def _require_incumbent(self) -> int:
+        if self._incumbent_id is None:
+            raise RuntimeError("no incumbent yet")
+        return self._incumbent_id
+
+    def _update_king(self, outcomes: Sequence[Outcome]) -> bool:
+        """King-of-the-hill update (App. D.1): a candidate that beats the incumbent replaces
+        it. With several winners against the incumbent in one batch, the first winner in
+        proposal order (lowest id) becomes the incumbent. Returns True if it changed."""
+        if self._incumbent_id is None:
+            first = outcomes[0]
+            self._incumbent_id = int(first.winner)
+            return True
+        winners = sorted(int(o.winner) for o in outcomes if o.loser == self._incumbent_id)
+        if winners:
+            self._incumbent_id = winners[0]
+            return True
+        return False
+
+    # ------------------------------------------------------------------ subclass API
+    @abc.abstractmethod
+    def _propose(self, remaining: int) -> Ask:
+        """Return the next work after the initial design. ``remaining`` >= 1 evaluations
+        are left; new thetas must be registered with :meth:`_register`."""
+
+    @abc.abstractmethod
+    def _on_step_complete(
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+    ) -> None:
+        """Called once every duel of an ask (after the initial design) is answered."""
+
+
+class KingOfTheHillOptimizer(PreferenceOptimizer):
+    """Base for methods that duel each new candidate against the incumbent (App. D.1).
+
+    Subclasses implement :meth:`_propose_thetas`; the incumbent update rule is
+    :meth:`PreferenceOptimizer._update_king`.
+    """
+
+    def __init__(self, *args: object, batch_size: int = 1, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        if isinstance(batch_size, bool) or not isinstance(batch_size, int | np.integer):
+            raise ValueError(f"batch_size: must be an integer >= 1, got {batch_size!r}")
+        if batch_size < 1:
+            raise ValueError(f"batch_size: must be >= 1, got {batch_size}")
+        self.batch_size = int(batch_size)
+
+    def _propose(self, remaining: int) -> Ask:
+        q = min(self.batch_size, remaining)
+        thetas = self._propose_thetas(q)
+        new = self._register(thetas)
+        inc = self._require_incumbent()
+        return Ask(tuple(new), tuple(Duel(c.id, inc) for c in new))
+
+    def _on_step_complete(
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+    ) -> None:
+        self._update_king(outcomes)
+
+    @abc.abstractmethod
+    def _propose_thetas(self, q: int) -> list[np.ndarray]:
+        """Return ``q`` points of [0,1]^d to evaluate next."""

@@ -1,0 +1,19 @@
+"""Fixtures for optimizer tests (helpers live in ``optim_helpers.py``)."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+from optim_helpers import FakeSurrogate
+
+
+@pytest.fixture
+def fake_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Replace TuRPBO's surrogate fit by :class:`FakeSurrogate` (state-machine tests)."""
+    from localpbo_core.optimizers.turpbo import TuRPBO
+
+    def _fit(self: TuRPBO) -> FakeSurrogate:
+        self._surrogate = FakeSurrogate(torch.tensor(self.train_inputs()))
+        return self._surrogate
+
+    monkeypatch.setattr(TuRPBO, "_fit", _fit)
