@@ -5,13 +5,17 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable
 
+from localpbo_core.optimizers.glisp import GLISpOptimizer
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+from localpbo_core.optimizers.qeubo import QEUBO
 from localpbo_core.optimizers.sobol import SobolOptimizer
 from localpbo_core.optimizers.turpbo import TuRPBO
 
 _REGISTRY: dict[str, Callable[..., PreferenceOptimizer]] = {
     "sobol": SobolOptimizer,
     "turpbo": TuRPBO,
+    "qeubo": QEUBO,
+    "glisp": GLISpOptimizer,
 }
 
 
