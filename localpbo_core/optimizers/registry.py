@@ -79,3 +79,15 @@ def make_optimizer(
         else:
             budget = 0
     return factory(dim=dim, seed=seed, budget=budget, **options)
+
+
+# --- derivative-informed local methods (issue 5: GIPBO, GIPBOr, PrefSQP; helper G) -------------
+def _register_derivative_methods() -> None:
+    from localpbo_core.optimizers.gipbo import GIPBO, GIPBOr
+    from localpbo_core.optimizers.prefsqp import PrefSQP
+
+    for key, factory in (("gipbo", GIPBO), ("gipbor", GIPBOr), ("prefsqp", PrefSQP)):
+        _REGISTRY.setdefault(key, factory)
+
+
+_register_derivative_methods()

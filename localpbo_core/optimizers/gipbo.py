@@ -1,0 +1,233 @@
+"""GIPBO and GIPBOr: gradient-informed local preferential BO (paper Sec. 5.1, App. C.2-C.3,
+Alg. GIPBO, table ``tab:gipbo_hyperparameters``).
+
+Phase ``t`` at centre ``x_t``: ``M = d`` local queries, each chosen by the preferential GI
+acquisition (eq. GI_PBO_acf_detailed, GIPBO) or at random in the same search region
+(GIPBOr), and dueled against the local incumbent ``x*_{t,i-1}`` (which starts at ``x_t`` and
+is replaced by a query that wins). GIPBO refits the pairwise GP (hyperparameters learned,
+warm-started) before every query; both refit after the ``M`` duels and step
+
+    ``g = mu_grad(x_t)``, ``p = g / sqrt(g^T Lambda g)``, ``x_{t+1} = Pi(x_t + eta p)``
+
+(App. C.2, "Gradient-step normalization"), with the step rescaled to length ``min_step`` if
+shorter. Budget accounting and the centre's evaluation: :mod:`.local_phase`.
+
+Decisions not fixed by the paper:
+
+* The "SE lengthscale matrix L" of the Mahalanobis norm is read as the kernel's metric
+  ``Lambda = diag(1 / l^2)`` (``k = s exp(-0.5 (x - x')^T Lambda (x - x'))``), so the step has
+  unit length in the kernel metric and Euclidean length ``eta * |g| / |g|_Lambda``, between
+  ``eta * min(l)`` and ``eta * max(l)`` (as GIBO's lengthscale-scaled normalised gradient). With
+  ``diag(l^2)`` the step would be at least ``eta / 0.5 = 1`` for every lengthscale in
+  ``[0.05, 0.5]``, leaving the local region at every step.
+* The virtual duel of the acquisition is against the local incumbent (the duel that will
+  actually be run); ``virtual_opponent="centre"`` uses ``x_t`` as written in eq.
+  GI_PBO_acf_detailed. Both coincide for the first query of a phase.
+* Virtual preference likelihood threshold 0.1: see :mod:`.gi_acquisition`.
+* A zero (or non-finite) posterior mean gradient gives no step (the phase repeats at x_t).
+* If every acquisition candidate coincides with data (possible only in a corner), the query
+  is drawn as in GIPBOr.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from localpbo_core.optimizers.base import Candidate, Outcome
+from localpbo_core.optimizers.gi_acquisition import (
+    DEFAULT_BOUNDS,
+    DEFAULT_RADII,
+    gi_pbo_acquisition,
+    hypersphere_candidates,
+    random_local_query,
+)
+from localpbo_core.optimizers.local_phase import (
+    LocalPhaseOptimizer,
+    check_float,
+    check_positive_int,
+)
+from localpbo_core.optimizers.preference_optimizer import step_generator
+
+VIRTUAL_OPPONENTS = ("incumbent", "centre")
+
+
+def normalized_gradient_step(
+    gradient: np.ndarray, lengthscale: np.ndarray, step_size: float, min_step: float
+) -> np.ndarray:
+    """``eta g / sqrt(g^T Lambda g)``, ``Lambda = diag(1/l^2)`` (App. C.2), rescaled to
+    Euclidean length ``min_step`` if shorter. Zero for a zero or non-finite gradient."""
+    g = np.asarray(gradient, dtype=np.float64)
+    norm = float(np.sqrt(np.sum(g * g / np.asarray(lengthscale, dtype=np.float64) ** 2)))
+    if not np.isfinite(norm) or norm == 0.0:
+        return np.zeros_like(g)
+    step = step_size * g / norm
+    length = float(np.linalg.norm(step))
+    if length < min_step:
+        step = step * (min_step / length)
+    return step
+
+
+class GIPBO(LocalPhaseOptimizer):
+    """GIPBO (App. C.2, Alg. GIPBO) behind the ask/tell contract.
+
+    Args:
+        dim, seed, budget, initial_design, warm_start: see ``PreferenceOptimizer``.
+        step_size: eta (table: 0.5).
+        min_step: minimum Euclidean step length (table: 0.05).
+        num_local_queries: M (table: d; None = d).
+        search_bounds: ``(delta_min, delta_max)`` of the local search region (table:
+            (0.05, 0.2)); the d <= 2 circles span it.
+        radii: hypersphere radii for d > 2 (table: 0.05, 0.1, 0.15, 0.2).
+        resolution: candidates per dimension for d > 2 (table: 50).
+        max_candidates: cap on the candidate set for d > 2 (App. C.2: 512).
+        likelihood_threshold: virtual preference likelihood threshold (table: 0.1).
+        virtual_opponent: ``"incumbent"`` (default) or ``"centre"`` (see the module docstring).
+    """
+
+    name = "gipbo"
+    _random_queries = False
+
+    def __init__(
+        self,
+        dim: int,
+        seed: int,
+        budget: int,
+        initial_design: int = 2,
+        warm_start: Sequence[float] | np.ndarray | None = None,
+        step_size: float = 0.5,
+        min_step: float = 0.05,
+        num_local_queries: int | None = None,
+        search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
+        radii: Sequence[float] = DEFAULT_RADII,
+        resolution: int = 50,
+        max_candidates: int = 512,
+        likelihood_threshold: float = 0.1,
+        virtual_opponent: str = "incumbent",
+    ) -> None:
+        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        self.step_size = check_float(step_size, "step_size", 0.0, 1e6, low_open=True)
+        self.min_step = check_float(min_step, "min_step", 0.0, 1e6, low_open=False)
+        self.num_local_queries = (
+            self.dim
+            if num_local_queries is None
+            else check_positive_int(num_local_queries, "num_local_queries")
+        )
+        try:
+            lo, hi = (float(b) for b in search_bounds)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"search_bounds: expected two numbers, got {search_bounds!r}") from exc
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
+            raise ValueError(f"search_bounds: need 0 < delta_min <= delta_max, got {search_bounds}")
+        self.search_bounds = (lo, hi)
+        try:
+            self.radii = tuple(float(r) for r in radii)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"radii: expected a sequence of numbers, got {radii!r}") from exc
+        if not self.radii or any(not np.isfinite(r) or r <= 0 for r in self.radii):
+            raise ValueError(f"radii: need a non-empty sequence of positive numbers, got {radii}")
+        self.resolution = check_positive_int(resolution, "resolution")
+        self.max_candidates = check_positive_int(max_candidates, "max_candidates")
+        self.likelihood_threshold = check_float(
+            likelihood_threshold, "likelihood_threshold", 0.0, 0.4999999, low_open=False
+        )
+        if virtual_opponent not in VIRTUAL_OPPONENTS:
+            raise ValueError(
+                f"virtual_opponent: must be one of {VIRTUAL_OPPONENTS}, got {virtual_opponent!r}"
+            )
+        self.virtual_opponent = virtual_opponent
+        self._queries_done = 0
+        #: GI-PBO values of the last candidate set (for inspection and tests).
+        self.last_acquisition: torch.Tensor | None = None
+
+    def _start_phase(self) -> None:
+        self._queries_done = 0
+
+    # ------------------------------------------------------------------ queries
+    def _local_thetas(self, remaining: int) -> list[np.ndarray]:
+        assert self._centre_theta is not None
+        rng = step_generator(self.seed, self._step)
+        if self._random_queries:
+            return [random_local_query(self._centre_theta, rng, self.search_bounds)]
+        surrogate = self._fit()
+        cands = hypersphere_candidates(
+            self._centre_theta,
+            rng,
+            radii=self.radii,
+            resolution=self.resolution,
+            max_candidates=self.max_candidates,
+            search_bounds=self.search_bounds,
+        )
+        opp = (
+            self._local_incumbent_theta()
+            if self.virtual_opponent == "incumbent"
+            else self._centre_theta
+        )
+        acq = gi_pbo_acquisition(
+            surrogate,  # type: ignore[arg-type]
+            torch.tensor(self._centre_theta, dtype=torch.float64),
+            torch.tensor(cands, dtype=torch.float64),
+            torch.tensor(opp, dtype=torch.float64),
+            likelihood_threshold=self.likelihood_threshold,
+        )
+        self.last_acquisition = acq
+        if not torch.isfinite(acq).any():
+            return [random_local_query(self._centre_theta, rng, self.search_bounds)]
+        return [cands[int(torch.argmax(acq))]]
+
+    def _local_opponent(self) -> int:
+        assert self._local_inc_id is not None
+        return self._local_inc_id
+
+    # ------------------------------------------------------------------ tell
+    def _after_duels(
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+    ) -> None:
+        query = candidates[-1].id
+        if any(o.winner == query for o in outcomes):
+            self._local_inc_id = query
+        self._incumbent_id = self._local_inc_id
+        self._queries_done += 1
+        if self._queries_done < self.num_local_queries:
+            return
+        surrogate = self._fit()
+        assert self._centre_theta is not None
+        x = torch.tensor(self._centre_theta, dtype=torch.float64)
+        g = surrogate.mean_gradient(x).detach().numpy()  # type: ignore[attr-defined]
+        ls = surrogate.lengthscale.detach().numpy()  # type: ignore[attr-defined]
+        step = normalized_gradient_step(g, ls, self.step_size, self.min_step)
+        self._move_centre(self._centre_theta + step)
+
+
+class GIPBOr(GIPBO):
+    """GIPBOr (App. C.3): GIPBO with random local queries (uniform direction, radius uniform
+    in ``search_bounds``, projected onto ``[0,1]^d``); one GP fit per gradient step."""
+
+    name = "gipbor"
+    _random_queries = True
+
+    def __init__(
+        self,
+        dim: int,
+        seed: int,
+        budget: int,
+        initial_design: int = 2,
+        warm_start: Sequence[float] | np.ndarray | None = None,
+        step_size: float = 0.5,
+        min_step: float = 0.05,
+        num_local_queries: int | None = None,
+        search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
+    ) -> None:
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            step_size=step_size,
+            min_step=min_step,
+            num_local_queries=num_local_queries,
+            search_bounds=search_bounds,
+        )
