@@ -17,10 +17,16 @@ from mcap_ros2.reader import read_ros2_messages
 from rosbags.highlevel import AnyReader
 
 from localpbo_core.optimizers import Outcome, make_optimizer
-from localpbo_msgs_py import DuelOutcome, OutcomeKind
+from localpbo_msgs_py import DuelOutcome, EpisodeResult, OutcomeKind
 from localpbo_msgs_py.bag import read_messages
 from localpbo_msgs_py.qos_yaml import offered_qos_yaml
-from localpbo_msgs_py.topics import ALL_TOPICS, CANDIDATE, DUEL_OUTCOME, RUN_CONFIG
+from localpbo_msgs_py.topics import (
+    ALL_TOPICS,
+    CANDIDATE,
+    DUEL_OUTCOME,
+    EPISODE_RESULT,
+    RUN_CONFIG,
+)
 
 from .conftest import SMALL_TASK
 
@@ -43,6 +49,14 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
     ]
     ids = Counter(o.duel_id for o in decisive if o.kind is OutcomeKind.DECISIVE)
     assert sorted(ids) == list(range(29)) and set(ids.values()) == {1}
+    # the summary's episode returns are the recorded ones of the best and the first candidate
+    returns = {
+        r.candidate_id: r.episode_return
+        for r in (EpisodeResult.decode(_to_rclpy(m.ros_msg)) for m in msgs
+                  if m.channel.topic == EPISODE_RESULT.name)
+    }
+    assert summary.best_return == returns[summary.best_id]
+    assert summary.first_return == returns[0]
     cfg = json.loads(next(m.ros_msg.data for m in msgs if m.channel.topic == RUN_CONFIG.name))
     assert cfg["run_id"] == "loop" and cfg["seed"] == 11 and cfg["budget"] == 30
     # independent reader 2: rosbags

@@ -66,6 +66,16 @@ class OracleNode(FollowerNode):
         self.subscribe(EPISODE_RESULT, self._on_result)
         self.subscribe(DUEL_REQUEST, self._on_request)
 
+    def episode_return(self, candidate_id: int) -> float | None:
+        """The episode return received for a candidate (None if unknown or failed).
+
+        For reports only (``localpbo run``'s summary); the optimizer never sees returns.
+        """
+        res = self._results.get(candidate_id)
+        if res is None or res.status is not EpisodeStatus.OK:
+            return None
+        return float(res.episode_return)
+
     def reset(self) -> None:
         """Forget the previous run's results and duels."""
         self._results.clear()

@@ -36,10 +36,10 @@ from localpbo_ros.sim_node import Evaluator, SimNode
 DEFAULTS: dict[str, Any] = {
     "task": "swimmer",
     "algorithm": "turpbo",
-    "budget": 16,
+    "budget": 162,
     "seed": 0,
 }
-"""The embedded default: a short TuRPBO run on the 16-D Swimmer linear policy."""
+"""The embedded default: TuRPBO on the 16-D Swimmer linear policy, 2 + 10 d = 162 evaluations."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,8 @@ class RunSummary:
     loop_seconds: float
     loop_cpu_seconds: float
     recorded: int
+    best_return: float | None = None
+    first_return: float | None = None
 
     def format(self) -> str:
         """Human-readable summary."""
@@ -72,6 +74,11 @@ class RunSummary:
         if self.best_id is not None:
             theta = ", ".join(f"{v:.4f}" for v in self.best_theta)
             lines.append(f"best candidate (from preferences): id {self.best_id}, θ = [{theta}]")
+        if self.best_return is not None and self.first_return is not None:
+            lines.append(
+                f"episode return (reported, never shown to the optimizer): best candidate "
+                f"{self.best_return:.1f}, first candidate {self.first_return:.1f}"
+            )
         lines.append(f"bag: {self.bag}")
         return "\n".join(lines)
 
@@ -123,7 +130,8 @@ def run_suite(
                 copy_into(resume, writer)
             nodes.append(RecorderNode(context=ctx, writer=writer))
         nodes.append(SimNode(context=ctx, evaluator=evaluator))
-        nodes.append(OracleNode(context=ctx))
+        oracle = OracleNode(context=ctx)
+        nodes.append(oracle)
         for node in nodes:
             executor.add_node(node)
         if record:
@@ -161,6 +169,8 @@ def run_suite(
             max(opt.finished_at - opt.started_at, 0.0),
             opt.cpu_seconds,
             nodes[0].recorded if record else 0,
+            None if inc is None else oracle.episode_return(inc.candidate_id),
+            oracle.episode_return(0),
         )
     finally:
         for node in nodes:
