@@ -1,62 +1,10 @@
-"""Shared data generators and BoTorch reference builders for the surrogate tests."""
+"""Fixtures of the surrogate tests (helpers live in surrogate_helpers.py)."""
 
 from __future__ import annotations
 
 import pytest
 import torch
-from botorch.models import PairwiseGP
-from botorch.models.pairwise_gp import PairwiseLaplaceMarginalLogLikelihood
-from gpytorch.constraints import Interval
-from gpytorch.kernels import RBFKernel, ScaleKernel
-from gpytorch.priors import GammaPrior, SmoothedBoxPrior
-
-
-def loop_duels(d: int, n: int, seed: int, noise: float = 0.1, scale: float = 3.0):
-    """``n`` duels on ``n + 1`` random points, each new point dueled against a previous one,
-    outcomes from a smooth random utility plus Gaussian noise (all from ``seed``)."""
-    g = torch.Generator().manual_seed(seed)
-    X = torch.rand(n + 1, d, generator=g, dtype=torch.float64)
-    centre = torch.rand(d, generator=g, dtype=torch.float64)
-    freq = torch.randn(d, generator=g, dtype=torch.float64)
-    y = scale * (-((X - centre) ** 2).sum(-1) + 0.3 * torch.sin(3.0 * X @ freq))
-    y = y + noise * torch.randn(n + 1, generator=g, dtype=torch.float64)
-    new = torch.arange(1, n + 1)
-    old = (torch.rand(n, generator=g, dtype=torch.float64) * new).long()
-    win = y[new] > y[old]
-    comp = torch.stack([torch.where(win, new, old), torch.where(win, old, new)], dim=1)
-    return X, comp
-
-
-def botorch_model(X, comp, lengthscale=None, outputscale=None, xtol=1e-12):
-    """BoTorch ``PairwiseGP`` with our kernel, priors and constraints; hyperparameters set and
-    frozen when given."""
-    d = X.shape[1]
-    base = RBFKernel(
-        ard_num_dims=d,
-        lengthscale_prior=GammaPrior(2.4, 2.7),
-        lengthscale_constraint=Interval(0.05, 0.5),
-    )
-    kern = ScaleKernel(
-        base,
-        outputscale_prior=SmoothedBoxPrior(0.01, 100.0),
-        outputscale_constraint=Interval(0.005, 200.0),
-    ).to(torch.float64)
-    if lengthscale is not None:
-        base.lengthscale = torch.as_tensor(lengthscale, dtype=torch.float64).reshape(1, d)
-        base.raw_lengthscale.requires_grad_(False)
-    if outputscale is not None:
-        kern.outputscale = torch.as_tensor(outputscale, dtype=torch.float64)
-        kern.raw_outputscale.requires_grad_(False)
-    return PairwiseGP(X, comp, covar_module=kern, xtol=xtol)
-
-
-def botorch_mll_value(model) -> float:
-    """BoTorch's ``PairwiseLaplaceMarginalLogLikelihood`` (with hyperpriors) at the model's
-    current hyperparameters."""
-    model.train()
-    mll = PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model)
-    out = model(model.unconsolidated_datapoints)
-    return float(mll(out, model.unconsolidated_comparisons).detach())
+from surrogate_helpers import loop_duels
 
 
 @pytest.fixture(autouse=True)

@@ -7,7 +7,7 @@ import pytest
 import torch
 from botorch.fit import fit_gpytorch_mll
 from botorch.models.pairwise_gp import PairwiseLaplaceMarginalLogLikelihood
-from conftest import botorch_mll_value, botorch_model
+from surrogate_helpers import botorch_mll_value, botorch_model
 
 from localpbo_core.surrogate import PairwiseGPSurrogate
 from localpbo_core.surrogate.laplace import probit_terms
