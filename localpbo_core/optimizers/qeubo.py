@@ -46,6 +46,7 @@ from botorch.utils.sampling import manual_seed
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 
 
 def _positive_int(name: str, value: object) -> int:
@@ -92,10 +93,9 @@ class QEUBO(PreferenceOptimizer):
         self.hyperparameter_refit_every = _positive_int(
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
-        self._fits = 0
         if self.num_restarts > self.num_raw_samples:
             raise ValueError("num_restarts: must not exceed num_raw_samples")
-        self._surrogate: object | None = None
+        self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
         self._next_duels: list[Duel] = []
@@ -105,7 +105,7 @@ class QEUBO(PreferenceOptimizer):
     @property
     def surrogate(self) -> object | None:
         """The last fitted surrogate (None before the first iteration)."""
-        return self._surrogate
+        return self._refitter.surrogate
 
     @property
     def done(self) -> bool:
@@ -126,23 +126,7 @@ class QEUBO(PreferenceOptimizer):
         return super().ask()
 
     def _fit(self) -> object:
-        from localpbo_core.surrogate import PairwiseGPSurrogate
-
-        X = torch.tensor(self.train_inputs(), dtype=torch.float64)
-        comps = torch.tensor(self.comparisons(), dtype=torch.long)
-        prev = self._surrogate
-        if prev is not None and self._fits % self.hyperparameter_refit_every != 0:
-            self._surrogate = PairwiseGPSurrogate.fit(
-                X,
-                comps,
-                lengthscale=prev.lengthscale,  # type: ignore[attr-defined]
-                outputscale=prev.outputscale,  # type: ignore[attr-defined]
-                warm_start=prev,  # type: ignore[arg-type]
-            )
-        else:
-            self._surrogate = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)  # type: ignore[arg-type]
-        self._fits += 1
-        return self._surrogate
+        return self._refitter.refit(self.train_inputs(), self.comparisons())
 
     def select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Refit and maximise (q)EUBO over [0,1]^d; returns ``(q, d)``."""

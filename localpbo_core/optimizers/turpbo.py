@@ -31,6 +31,7 @@ import torch
 from localpbo_core.optimizers.acquisition import eubo_batch, thompson_batch
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.optimizers.trust_region import (
     TREvent,
     TrustRegionState,
@@ -98,13 +99,12 @@ class TuRPBO(PreferenceOptimizer):
         self.num_features = num_features
         self.num_mc_samples = num_mc_samples
         self.hyperparameter_refit_every = hyperparameter_refit_every
-        self._fits = 0
         self.tr = TrustRegionState(dim=self.dim, batch_size=batch_size)
         self._center_id: int | None = None
         self._center_challenged = True  # centre known to be the global incumbent
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
-        self._surrogate: object | None = None
+        self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
         self.events: list[TREvent] = []
 
     # ------------------------------------------------------------------ state
@@ -118,27 +118,11 @@ class TuRPBO(PreferenceOptimizer):
     @property
     def surrogate(self) -> object | None:
         """The last fitted surrogate (None before the first TuRPBO iteration)."""
-        return self._surrogate
+        return self._refitter.surrogate
 
     # ------------------------------------------------------------------ model
     def _fit(self) -> object:
-        from localpbo_core.surrogate import PairwiseGPSurrogate
-
-        X = torch.tensor(self.train_inputs(), dtype=torch.float64)
-        comps = torch.tensor(self.comparisons(), dtype=torch.long)
-        prev = self._surrogate
-        if prev is not None and self._fits % self.hyperparameter_refit_every != 0:
-            self._surrogate = PairwiseGPSurrogate.fit(
-                X,
-                comps,
-                lengthscale=prev.lengthscale,  # type: ignore[attr-defined]
-                outputscale=prev.outputscale,  # type: ignore[attr-defined]
-                warm_start=prev,  # type: ignore[arg-type]
-            )
-        else:
-            self._surrogate = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)  # type: ignore[arg-type]
-        self._fits += 1
-        return self._surrogate
+        return self._refitter.refit(self.train_inputs(), self.comparisons())
 
     # ------------------------------------------------------------------ ask / tell hooks
     def _propose(self, remaining: int) -> Ask:
