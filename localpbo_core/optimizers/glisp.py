@@ -45,7 +45,11 @@ from typing import Any
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    check_int,
+    step_generator,
+)
 
 #: Tag mixed into the seed of GLISp's extra random initial points.
 GLISP_INIT_TAG = 0x611F
@@ -137,8 +141,7 @@ class GLISpOptimizer(PreferenceOptimizer):
             ("pso_iters", pso_iters),
             ("pso_swarm_size", pso_swarm_size),
         ):
-            if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < 1:
-                raise ValueError(f"{key}: must be an integer >= 1, got {val!r}")
+            check_int(key, val)
         if n_initial_random < 2:
             raise ValueError(f"n_initial_random: must be >= 2, got {n_initial_random}")
         if (

@@ -62,6 +62,14 @@ class History:
     outcomes: tuple[Outcome, ...]
 
 
+def check_int(field: str, value: object, minimum: int = 1) -> int:
+    """Return ``value`` as an int if it is an integer (not a bool) >= ``minimum``, else raise
+    ValueError naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise ValueError(f"{field}: must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def check_theta(theta: object, dim: int, field: str) -> np.ndarray:
     """Return ``theta`` as a read-only float64 vector in [0,1]^dim or raise ValueError."""
     try:
@@ -109,8 +117,7 @@ class PreferenceOptimizer(abc.ABC):
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
     ) -> None:
-        if isinstance(dim, bool) or not isinstance(dim, int | np.integer) or dim < 1:
-            raise ValueError(f"dim: must be an integer >= 1, got {dim!r}")
+        check_int("dim", dim)
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
             raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
         if (
@@ -347,11 +354,7 @@ class KingOfTheHillOptimizer(PreferenceOptimizer):
 
     def __init__(self, *args: object, batch_size: int = 1, **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
-        if isinstance(batch_size, bool) or not isinstance(batch_size, int | np.integer):
-            raise ValueError(f"batch_size: must be an integer >= 1, got {batch_size!r}")
-        if batch_size < 1:
-            raise ValueError(f"batch_size: must be >= 1, got {batch_size}")
-        self.batch_size = int(batch_size)
+        self.batch_size = check_int("batch_size", batch_size)
 
     def _propose(self, remaining: int) -> Ask:
         q = min(self.batch_size, remaining)

@@ -45,14 +45,12 @@ from botorch.utils.sampling import manual_seed
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    check_int,
+    step_generator,
+)
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
-
-
-def _positive_int(name: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ValueError(f"{name}: must be an integer >= 1, got {value!r}")
-    return int(value)
 
 
 class QEUBO(PreferenceOptimizer):
@@ -86,11 +84,11 @@ class QEUBO(PreferenceOptimizer):
         hyperparameter_refit_every: int = 1,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        self.batch_size = _positive_int("batch_size", batch_size)
-        self.num_restarts = _positive_int("num_restarts", num_restarts)
-        self.num_raw_samples = _positive_int("num_raw_samples", num_raw_samples)
-        self.num_mc_samples = _positive_int("num_mc_samples", num_mc_samples)
-        self.hyperparameter_refit_every = _positive_int(
+        self.batch_size = check_int("batch_size", batch_size)
+        self.num_restarts = check_int("num_restarts", num_restarts)
+        self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
+        self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
+        self.hyperparameter_refit_every = check_int(
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
         if self.num_restarts > self.num_raw_samples:

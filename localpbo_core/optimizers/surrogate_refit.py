@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from localpbo_core.optimizers.preference_optimizer import check_int
 from localpbo_core.surrogate import PairwiseGPSurrogate
 
 
@@ -23,9 +24,7 @@ class SurrogateRefitter:
     """
 
     def __init__(self, every: int = 1) -> None:
-        if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
-            raise ValueError(f"hyperparameter_refit_every: must be an integer >= 1, got {every!r}")
-        self.every = int(every)
+        self.every = check_int("hyperparameter_refit_every", every)
         self.fits = 0
         self.surrogate: PairwiseGPSurrogate | None = None
 

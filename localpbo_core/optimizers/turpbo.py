@@ -30,7 +30,11 @@ import torch
 
 from localpbo_core.optimizers.acquisition import eubo_batch, thompson_batch
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    check_int,
+    step_generator,
+)
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.optimizers.trust_region import (
     TREvent,
@@ -77,8 +81,7 @@ class TuRPBO(PreferenceOptimizer):
         hyperparameter_refit_every: int = 1,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-            raise ValueError(f"batch_size: must be an integer >= 1, got {batch_size!r}")
+        check_int("batch_size", batch_size)
         if acquisition not in ACQUISITIONS:
             raise ValueError(f"acquisition: must be one of {ACQUISITIONS}, got {acquisition!r}")
         for key, val in (
@@ -88,8 +91,7 @@ class TuRPBO(PreferenceOptimizer):
             ("num_mc_samples", num_mc_samples),
             ("hyperparameter_refit_every", hyperparameter_refit_every),
         ):
-            if isinstance(val, bool) or not isinstance(val, int) or val < 1:
-                raise ValueError(f"{key}: must be an integer >= 1, got {val!r}")
+            check_int(key, val)
         if num_restarts > num_raw_samples:
             raise ValueError("num_restarts: must not exceed num_raw_samples")
         self.batch_size = batch_size
