@@ -153,3 +153,19 @@ def test_demo_runs_and_reports_where_results_went(tmp_path, capsys) -> None:
     rows = _rows(out / "results.csv")
     assert len(rows) == 2 * 40
     assert str(out / "results.csv") in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("problem", "budget"), [("hartmann6", 12), ("swimmer", 5)])
+def test_bench_runs_every_algorithm(tmp_path, problem, budget) -> None:
+    """Issue 5: ``localpbo bench`` runs every registered algorithm on Hartmann 6 and on a
+    MuJoCo task (short budgets; the full runs are in README)."""
+    from collections import Counter
+
+    from localpbo_core.optimizers import available_optimizers
+
+    names = available_optimizers()
+    out = tmp_path / problem
+    args = ["bench", "--problem", problem, "--algorithm", ",".join(names), "--seeds", "0"]
+    assert main([*args, "--budget", str(budget), "--out", str(out), "--no-progress"]) == 0
+    per_alg = Counter(r["algorithm"] for r in _rows(out / "results.csv"))
+    assert per_alg == dict.fromkeys(names, budget)
