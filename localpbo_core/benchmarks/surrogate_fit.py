@@ -41,9 +41,15 @@ def loop_data(d: int, n: int, seed: int) -> tuple[Tensor, Tensor]:
 
 
 def botorch_model(
-    X: Tensor, comp: Tensor, lengthscale: Tensor | None = None, outputscale: float | None = None
+    X: Tensor,
+    comp: Tensor,
+    lengthscale: Tensor | None = None,
+    outputscale: float | None = None,
+    xtol: float | None = None,
 ):
-    """BoTorch ``PairwiseGP`` with the paper's kernel/priors/constraints (App. C.2)."""
+    """BoTorch ``PairwiseGP`` with the paper's kernel/priors/constraints (App. C.2); the
+    hyperparameters given are set and frozen (not learned); ``xtol`` goes to BoTorch's fsolve
+    (None = BoTorch's default). Also the reference model of the surrogate tests."""
     from botorch.models import PairwiseGP
     from gpytorch.constraints import Interval
     from gpytorch.kernels import RBFKernel, ScaleKernel
@@ -61,10 +67,12 @@ def botorch_model(
         outputscale_constraint=Interval(0.005, 200.0),
     ).to(torch.float64)
     if lengthscale is not None:
-        base.lengthscale = lengthscale.reshape(1, d)
+        base.lengthscale = torch.as_tensor(lengthscale, dtype=torch.float64).reshape(1, d)
+        base.raw_lengthscale.requires_grad_(False)
     if outputscale is not None:
-        kern.outputscale = torch.tensor(outputscale, dtype=torch.float64)
-    return PairwiseGP(X, comp, covar_module=kern)
+        kern.outputscale = torch.as_tensor(outputscale, dtype=torch.float64)
+        kern.raw_outputscale.requires_grad_(False)
+    return PairwiseGP(X, comp, covar_module=kern, xtol=xtol)
 
 
 def botorch_mll(model) -> float:

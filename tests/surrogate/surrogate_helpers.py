@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import torch
-from botorch.models import PairwiseGP
 from botorch.models.pairwise_gp import PairwiseLaplaceMarginalLogLikelihood
-from gpytorch.constraints import Interval
-from gpytorch.kernels import RBFKernel, ScaleKernel
-from gpytorch.priors import GammaPrior, SmoothedBoxPrior
+
+from localpbo_core.benchmarks.surrogate_fit import botorch_model as shared_botorch_model
 
 
 def loop_duels(d: int, n: int, seed: int, noise: float = 0.1, scale: float = 3.0):
@@ -27,26 +25,8 @@ def loop_duels(d: int, n: int, seed: int, noise: float = 0.1, scale: float = 3.0
 
 
 def botorch_model(X, comp, lengthscale=None, outputscale=None, xtol=1e-12):
-    """BoTorch ``PairwiseGP`` with our kernel, priors and constraints; hyperparameters set and
-    frozen when given."""
-    d = X.shape[1]
-    base = RBFKernel(
-        ard_num_dims=d,
-        lengthscale_prior=GammaPrior(2.4, 2.7),
-        lengthscale_constraint=Interval(0.05, 0.5),
-    )
-    kern = ScaleKernel(
-        base,
-        outputscale_prior=SmoothedBoxPrior(0.01, 100.0),
-        outputscale_constraint=Interval(0.005, 200.0),
-    ).to(torch.float64)
-    if lengthscale is not None:
-        base.lengthscale = torch.as_tensor(lengthscale, dtype=torch.float64).reshape(1, d)
-        base.raw_lengthscale.requires_grad_(False)
-    if outputscale is not None:
-        kern.outputscale = torch.as_tensor(outputscale, dtype=torch.float64)
-        kern.raw_outputscale.requires_grad_(False)
-    return PairwiseGP(X, comp, covar_module=kern, xtol=xtol)
+    """The benchmark's BoTorch reference model, with fsolve tightened for tight comparisons."""
+    return shared_botorch_model(X, comp, lengthscale, outputscale, xtol=xtol)
 
 
 def botorch_mll_value(model) -> float:
