@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 import torch
-from scipy.optimize import minimize
+from scipy.optimize import Bounds, minimize
 from torch import Tensor
 
 _SQRT2 = 2.0**0.5
@@ -62,6 +62,45 @@ def qeubo_from_moments(mean: Tensor, cov: Tensor, base_samples: Tensor) -> Tenso
     return samples.max(dim=-1).values.mean(dim=-1)
 
 
+def _lbfgsb_multistart(
+    value_and_grad: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    values: Callable[[np.ndarray], np.ndarray],
+    starts: np.ndarray,
+    lb: np.ndarray,
+    ub: np.ndarray,
+    maxiter: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One L-BFGS-B run on the sum of a separable batched objective (numpy float64).
+
+    ``value_and_grad`` maps ``(R, *shape)`` points to their values ``(R,)`` and gradients
+    ``(R, *shape)``; ``values`` gives the values only. A start whose optimisation did not
+    improve is kept (L-BFGS-B may stop early), so no row ends worse than its start.
+    """
+    shape = starts.shape
+    lo = np.broadcast_to(lb, shape).reshape(-1)
+    hi = np.broadcast_to(ub, shape).reshape(-1)
+
+    def fun(flat: np.ndarray) -> tuple[float, np.ndarray]:
+        val, grad = value_and_grad(flat.reshape(shape))
+        return -float(val.sum()), -np.asarray(grad, dtype=np.float64).reshape(-1)
+
+    x0 = np.clip(starts.reshape(-1), lo, hi)
+    res = minimize(
+        fun,
+        x0,
+        jac=True,
+        method="L-BFGS-B",
+        bounds=Bounds(lo, hi),
+        options={"maxiter": maxiter},
+    )
+    x = np.clip(res.x.reshape(shape), np.broadcast_to(lb, shape), np.broadcast_to(ub, shape))
+    vals = values(x)
+    v0 = values(starts)
+    better = vals >= v0
+    x = np.where(better.reshape((-1,) + (1,) * (len(shape) - 1)), x, starts)
+    return x, np.maximum(vals, v0)
+
+
 def maximize_in_box(
     objective: Callable[[Tensor], Tensor],
     starts: np.ndarray,
@@ -73,39 +112,23 @@ def maximize_in_box(
 
     ``objective`` maps ``(R, *shape)`` points to ``(R,)`` values, each depending only on its
     own row, so maximising the sum maximises every row (the multi-start scheme of BoTorch's
-    ``gen_candidates_scipy``).
+    ``gen_candidates_scipy``). Gradients come from torch autograd.
 
     Returns:
         the optimised points ``(R, *shape)`` and their values ``(R,)``.
     """
-    shape = starts.shape
-    lo = np.broadcast_to(lb, shape).reshape(-1)
-    hi = np.broadcast_to(ub, shape).reshape(-1)
 
-    def fun(flat: np.ndarray) -> tuple[float, np.ndarray]:
-        x = torch.tensor(flat.reshape(shape), dtype=torch.float64, requires_grad=True)
-        val = objective(x).sum()
-        (grad,) = torch.autograd.grad(val, x)
-        return -float(val.detach()), -grad.reshape(-1).numpy().astype(np.float64)
+    def value_and_grad(x_np: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = torch.tensor(x_np, dtype=torch.float64, requires_grad=True)
+        val = objective(x)
+        (grad,) = torch.autograd.grad(val.sum(), x)
+        return val.detach().numpy(), grad.numpy()
 
-    x0 = np.clip(starts.reshape(-1), lo, hi)
-    res = minimize(
-        fun,
-        x0,
-        jac=True,
-        method="L-BFGS-B",
-        bounds=list(zip(lo, hi, strict=True)),
-        options={"maxiter": maxiter},
-    )
-    x = np.clip(res.x.reshape(shape), np.broadcast_to(lb, shape), np.broadcast_to(ub, shape))
-    with torch.no_grad():
-        vals = objective(torch.tensor(x, dtype=torch.float64)).numpy()
-    # Keep a start whose optimisation did not improve (L-BFGS-B may stop early).
-    with torch.no_grad():
-        v0 = objective(torch.tensor(starts, dtype=torch.float64)).numpy()
-    better = vals >= v0
-    x = np.where(better.reshape((-1,) + (1,) * (len(shape) - 1)), x, starts)
-    return x, np.maximum(vals, v0)
+    def values(x_np: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return objective(torch.tensor(x_np, dtype=torch.float64)).numpy()
+
+    return _lbfgsb_multistart(value_and_grad, values, starts, lb, ub, maxiter)
 
 
 def thompson_batch(
@@ -114,9 +137,15 @@ def thompson_batch(
     lb: np.ndarray,
     ub: np.ndarray,
     num_restarts: int = 5,
+    maxiter: int = 200,
 ) -> np.ndarray:
     """One maximiser per sample path: raw candidates -> best ``num_restarts`` per path ->
     L-BFGS-B inside the box on that path (TuRPBO table: 1024 raw, 5 restarts).
+
+    If ``path`` offers ``value_and_grad(x, index)`` and ``values(x)`` on float64 numpy
+    arrays (:class:`~localpbo_core.surrogate.sampling.SamplePaths`: closed-form gradient,
+    paper Sec. 4 pathwise sampling), those are used; otherwise the values come from
+    ``path`` and the gradients from torch autograd.
 
     Args:
         path: maps ``(N, d)`` to ``(N, P)``: P pathwise Thompson samples.
@@ -125,18 +154,35 @@ def thompson_batch(
     Returns:
         ``(P, d)``: the maximiser of each path.
     """
-    with torch.no_grad():
-        vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
+    analytic = callable(getattr(path, "value_and_grad", None)) and callable(
+        getattr(path, "values", None)
+    )
+    raw = np.asarray(raw, dtype=np.float64)
+    if analytic:
+        vals = path.values(raw)  # type: ignore[attr-defined]
+    else:
+        with torch.no_grad():
+            vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
     num_paths = vals.shape[1]
     out = []
     for j in range(num_paths):
         top = np.argsort(-vals[:, j], kind="stable")[:num_restarts]
         starts = raw[top]
+        if analytic:
 
-        def obj(x: Tensor, j: int = j) -> Tensor:
-            return path(x)[:, j]
+            def vg(x: np.ndarray, j: int = j) -> tuple[np.ndarray, np.ndarray]:
+                return path.value_and_grad(x, j)  # type: ignore[attr-defined]
 
-        xs, fs = maximize_in_box(obj, starts, lb, ub)
+            def v(x: np.ndarray, j: int = j) -> np.ndarray:
+                return path.values(x, j)  # type: ignore[attr-defined]
+
+            xs, fs = _lbfgsb_multistart(vg, v, starts, lb, ub, maxiter)
+        else:
+
+            def obj(x: Tensor, j: int = j) -> Tensor:
+                return path(x)[:, j]
+
+            xs, fs = maximize_in_box(obj, starts, lb, ub, maxiter)
         out.append(xs[int(np.argmax(fs))])
     return np.stack(out)
 
