@@ -2,9 +2,12 @@
 Chu & Ghahramani 2005, eq. 12) plus the log hyperpriors of BoTorch's default ``PairwiseGP``
 kernel: ``Gamma(2.4, 2.7)`` on every lengthscale and ``SmoothedBoxPrior(0.01, 100)`` on the
 outputscale. Bounds: lengthscales in ``[0.05, 0.5]`` (paper App. C.2 / D.2), outputscale in
-``[0.005, 200]`` (BoTorch's constraint). Optimiser: scipy L-BFGS-B over log-hyperparameters, the
-MAP re-solved by warm-started Newton at every evaluation (to ``INNER_NEWTON_TOL``), exact
-gradients in closed form from :func:`laplace.log_evidence_and_kernel_gradient` and
+``[0.005, 100]`` (see ``OUTPUTSCALE_BOUNDS``). Optimiser over log-hyperparameters: a
+box-constrained BFGS that carries its curvature from one refit to the next
+(:mod:`.box_bfgs`, default) or scipy's L-BFGS-B (the reference, ``solver="l-bfgs-b"``), both
+with scipy's L-BFGS-B stopping rules as BoTorch's ``fit_gpytorch_mll`` uses them. The MAP is
+re-solved by warm-started Newton at every evaluation (to ``INNER_NEWTON_TOL``); exact gradients
+in closed form from :func:`laplace.log_evidence_and_kernel_gradient` and
 :func:`kernel_hyperparameter_gradient` (autograd through :func:`laplace.log_evidence` is kept as
 the reference, ``analytic_gradient=False``).
 """
@@ -21,11 +24,28 @@ import torch
 from gpytorch.priors import GammaPrior, SmoothedBoxPrior
 from torch import Tensor
 
+from .box_bfgs import DEFAULT_FTOL, DEFAULT_GTOL, minimize_box_bfgs
+from .duel_space import (
+    dual_from_utilities,
+    duel_covariance,
+    find_mode,
+    kernel_gradient_from_duels,
+    log_evidence_and_duel_gradient,
+)
 from .kernel import se_kernel
 from .laplace import find_map, log_evidence, log_evidence_and_kernel_gradient
 
 LENGTHSCALE_BOUNDS = (0.05, 0.5)
-OUTPUTSCALE_BOUNDS = (0.005, 200.0)
+# BoTorch constrains the outputscale to [0.005, 200], but its SmoothedBoxPrior(0.01, 100) has a
+# Gaussian upper tail of width sigma = 0.01 (log density -5e7 at 200). Searching up to 200 puts a
+# cliff into the objective that line searches cannot cross (measured: every warm refit late in
+# a Hopper run, where the evidence pushes the outputscale to ~100, ended in a failed line search
+# with the hyperparameters unchanged). The search therefore stops at the prior's box edge 100:
+# with ``g = dE/dlog s`` at 100, going past it could gain at most ``(g sigma / 100)^2 / 2``
+# (1e-8 for g = 1.3, the size measured there), far below the fit tolerance.
+OUTPUTSCALE_BOUNDS = (0.005, 100.0)
+SOLVERS = ("carried-bfgs", "l-bfgs-b")
+FORMS = ("auto", "duels", "whitened")
 # Converted to float64 as BoTorch's model is (``.to(torch.float64)``): left in float32 the log
 # densities are rounded to ~1e-7 relative, which is noise for L-BFGS at ftol 1e-10.
 _LS_PRIOR = GammaPrior(concentration=2.4, rate=2.7).double()
@@ -63,7 +83,9 @@ def _cholesky_and_jitter(
 
 @dataclass
 class FitResult:
-    """Learned or fixed hyperparameters with the MAP in whitened form."""
+    """Learned or fixed hyperparameters with the MAP in whitened form; ``curvature`` is the
+    BFGS Hessian approximation over the learned log-hyperparameters (``carried-bfgs`` only),
+    the start of the next refit's solve."""
 
     lengthscale: Tensor
     outputscale: float
@@ -71,6 +93,7 @@ class FitResult:
     L: Tensor
     log_marginal_likelihood: float
     n_evaluations: int
+    curvature: np.ndarray | None = None
 
 
 def evaluate(
@@ -129,19 +152,45 @@ def evaluate_with_gradient(
     jitter: float,
     z_limit: float | None,
     with_prior: bool = True,
-) -> tuple[float, Tensor, Tensor, Tensor, Tensor]:
+    form: str = "auto",
+) -> tuple[float, Tensor, Tensor, Tensor]:
     """:func:`evaluate` with the analytic gradient instead of autograd: the objective
     ``log evidence + log hyperprior`` and its gradient w.r.t. ``log lengthscale`` and
     ``log outputscale`` (hyperprior part by autograd on its closed form).
 
-    Returns ``(objective, d objective / dlog l (d,), d objective / dlog s (0-d), v1, L)``.
+    ``form`` picks how the Laplace approximation is computed: ``"whitened"``
+    (:func:`laplace.log_evidence_and_kernel_gradient`, ``p x p`` systems), ``"duels"``
+    (:func:`duel_space.log_evidence_and_duel_gradient`, ``m x m`` systems, exact probit only;
+    the relative jitter is used as given) or ``"auto"``: duels when ``z_limit`` is None and
+    there are no more duels than points. Both give the same value and gradient (tested).
+
+    Returns ``(objective, d objective / dlog l (d,), d objective / dlog s (0-d), f_hat)``
+    where ``f_hat`` is the MAP utility at ``X`` (a warm start for the next evaluation).
     """
+    if form not in FORMS:
+        raise ValueError(f"form: must be one of {FORMS}, got {form!r}")
+    use_duels = form == "duels" or (
+        form == "auto" and z_limit is None and winners.shape[0] <= X.shape[0]
+    )
+    if use_duels and z_limit is not None:
+        raise ValueError("form: 'duels' supports the exact probit only (z_limit=None)")
     with torch.no_grad():
         K = se_kernel(X, X, lengthscale, outputscale)
-        L, j = _cholesky_and_jitter(K, outputscale, jitter)
-        v0 = torch.linalg.solve_triangular(L, f_init.unsqueeze(-1), upper=False).squeeze(-1)
-        v_hat, _ = find_map(L, winners, losers, v0, z_limit, tol=INNER_NEWTON_TOL)
-        ev, v1, G = log_evidence_and_kernel_gradient(v_hat, L, winners, losers, z_limit)
+        if use_duels:
+            j = jitter
+            Kj = K + (j * outputscale) * torch.eye(K.shape[0], dtype=K.dtype)
+            M = duel_covariance(Kj, winners, losers)
+            a0 = dual_from_utilities(f_init, winners, losers)
+            a_hat, _, _ = find_mode(M, a0, tol=INNER_NEWTON_TOL)
+            ev, a1, G_M = log_evidence_and_duel_gradient(M, a_hat)
+            G = kernel_gradient_from_duels(G_M, winners, losers, K.shape[0])
+            f_hat = a1 @ (Kj[winners] - Kj[losers])  # K H^T a
+        else:
+            L, j = _cholesky_and_jitter(K, outputscale, jitter)
+            v0 = torch.linalg.solve_triangular(L, f_init.unsqueeze(-1), upper=False).squeeze(-1)
+            v_hat, _ = find_map(L, winners, losers, v0, z_limit, tol=INNER_NEWTON_TOL)
+            ev, v1, G = log_evidence_and_kernel_gradient(v_hat, L, winners, losers, z_limit)
+            f_hat = L @ v1
         grad_ls, grad_os = kernel_hyperparameter_gradient(X, lengthscale, outputscale, K, G, j)
     value = float(ev)
     if with_prior:
@@ -152,7 +201,7 @@ def evaluate_with_gradient(
         value += float(prior.detach())
         grad_ls = grad_ls + log_ls.grad  # type: ignore[operator]
         grad_os = grad_os + log_os.grad  # type: ignore[operator]
-    return value, grad_ls, grad_os, v1, L
+    return value, grad_ls, grad_os, f_hat
 
 
 def learn_hyperparameters(
@@ -167,14 +216,28 @@ def learn_hyperparameters(
     jitter: float,
     z_limit: float | None,
     maxiter: int = 200,
-    ftol: float = 1e-10,
-    gtol: float = 1e-6,
+    ftol: float = DEFAULT_FTOL,
+    gtol: float = DEFAULT_GTOL,
     analytic_gradient: bool = True,
+    solver: str = "carried-bfgs",
+    curvature0: np.ndarray | None = None,
+    form: str = "auto",
 ) -> FitResult:
-    """Maximise evidence + hyperprior with L-BFGS-B over ``log`` hyperparameters within the
-    bounds; hyperparameters not learned stay fixed. Every evaluation warm-starts Newton from the
+    """Maximise evidence + hyperprior over ``log`` hyperparameters within the bounds;
+    hyperparameters not learned stay fixed. Every evaluation warm-starts Newton from the
     previous evaluation's MAP. ``analytic_gradient`` selects :func:`evaluate_with_gradient`
-    (default) or autograd through :func:`evaluate` (same objective, the reference)."""
+    (default) or autograd through :func:`evaluate` (same objective, the reference).
+
+    ``solver``: ``"carried-bfgs"`` (:func:`.box_bfgs.minimize_box_bfgs`, started from
+    ``curvature0`` when given, e.g. the previous fit's ``curvature``) or ``"l-bfgs-b"``
+    (scipy). ``ftol``/``gtol`` are scipy's L-BFGS-B defaults for both, as in BoTorch's fit.
+    ``form``: how each evaluation computes the Laplace approximation, see
+    :func:`evaluate_with_gradient`.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"solver: must be one of {SOLVERS}, got {solver!r}")
+    if form not in FORMS:
+        raise ValueError(f"form: must be one of {FORMS}, got {form!r}")
     d = X.shape[1]
     ls_lo, ls_hi = (math.log(b) for b in LENGTHSCALE_BOUNDS)
     os_lo, os_hi = (math.log(b) for b in OUTPUTSCALE_BOUNDS)
@@ -202,8 +265,8 @@ def learn_hyperparameters(
     def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
         if use_analytic:
             ls, os_ = unpack(torch.tensor(x, dtype=torch.float64))
-            val, g_ls, g_os, v1, L = evaluate_with_gradient(
-                X, winners, losers, ls, float(os_), state["f"], jitter, z_limit
+            val, g_ls, g_os, f_hat = evaluate_with_gradient(
+                X, winners, losers, ls, float(os_), state["f"], jitter, z_limit, form=form
             )
             parts = ([-g_ls] if learn_lengthscale else []) + (
                 [-g_os.reshape(1)] if learn_outputscale else []
@@ -217,17 +280,27 @@ def learn_hyperparameters(
                 (-value).backward()
             val = float(value.detach())
             grad = theta.grad.numpy().copy() if theta.grad is not None else np.zeros_like(x)
+            f_hat = (L @ v1).detach()
         state["n"] = int(state["n"]) + 1
         if math.isfinite(val):
-            state["f"] = (L @ v1).detach()
+            state["f"] = f_hat
             if val > float(best["value"]):  # type: ignore[arg-type]
-                best.update(value=val, theta=x.copy(), v=v1.detach(), L=L.detach())
+                best.update(value=val, theta=x.copy(), f=f_hat)
         if not math.isfinite(val) or not np.isfinite(grad).all():
             return 1e300, np.zeros_like(x)
         return -val, grad
 
     fun_typed: Callable[[np.ndarray], tuple[float, np.ndarray]] = fun
-    if x0:
+    curvature: np.ndarray | None = None
+    if x0 and solver == "carried-bfgs":
+        lo, hi = (np.array(b) for b in zip(*bounds, strict=True))
+        if curvature0 is not None and np.shape(curvature0) != (len(x0), len(x0)):
+            curvature0 = None  # a different set of learned hyperparameters: start afresh
+        res = minimize_box_bfgs(
+            fun_typed, np.array(x0), lo, hi, curvature0, maxiter=maxiter, ftol=ftol, gtol=gtol
+        )
+        curvature = res.hessian
+    elif x0:
         scipy.optimize.minimize(
             fun_typed,
             np.array(x0),
@@ -242,10 +315,14 @@ def learn_hyperparameters(
         raise ValueError("the Laplace evidence is not finite at any evaluated hyperparameters")
     with torch.no_grad():
         ls, os_ = unpack(torch.tensor(best["theta"], dtype=torch.float64))
-        L = best["L"]
-        # v1 is one Newton step from the converged MAP: a final solve only polishes it.
-        v_hat, _ = find_map(L, winners, losers, best["v"], z_limit)  # type: ignore[arg-type]
+        K = se_kernel(X, X, ls, os_)
+        L, j = _cholesky_and_jitter(K, os_, jitter)
+        # f is one Newton step from the converged MAP: a final solve only polishes it.
+        v0 = torch.linalg.solve_triangular(L, best["f"].unsqueeze(-1), upper=False)  # type: ignore[union-attr]
+        v_hat, _ = find_map(L, winners, losers, v0.squeeze(-1), z_limit)
         value = float(best["value"])  # type: ignore[arg-type]
+        if j != jitter:  # K needed more jitter than the search used: report its evidence
+            value = float(evaluate(X, winners, losers, ls, os_, L @ v_hat, jitter, z_limit)[0])
     return FitResult(
         lengthscale=ls.detach().clone(),
         outputscale=float(os_),
@@ -253,4 +330,5 @@ def learn_hyperparameters(
         L=L,
         log_marginal_likelihood=value,
         n_evaluations=int(state["n"]),
+        curvature=curvature,
     )

@@ -40,7 +40,12 @@ class ProbitTerms:
 
 def probit_terms(f: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None) -> ProbitTerms:
     """z-scores of eq. (likelihood); ``z_limit`` clamps z as BoTorch does (None = exact)."""
-    z = (f[winners] - f[losers]) / SQRT2
+    return probit_terms_of_differences(f[winners] - f[losers], z_limit)
+
+
+def probit_terms_of_differences(g: Tensor, z_limit: float | None) -> ProbitTerms:
+    """:func:`probit_terms` from the utility differences ``g_n = f(x_n^+) - f(x_n^-)``."""
+    z = g / SQRT2
     if z_limit is not None:
         active = z.detach().abs() < z_limit
         z = z.clamp(-z_limit, z_limit)

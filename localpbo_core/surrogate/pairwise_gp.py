@@ -8,10 +8,14 @@ ARD squared-exponential ``ScaleKernel`` prior, and the joint posterior of ``f``,
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from typing import TYPE_CHECKING
 
+import numpy as np
 import torch
 from torch import Tensor
+
+if TYPE_CHECKING:
+    from .sampling import SamplePaths
 
 from .data import DUPLICATE_ATOL, consolidate, validate_comparisons, validate_points
 from .hyperparameters import (
@@ -22,8 +26,13 @@ from .hyperparameters import (
 from .kernel import kernel_derivatives, prior_block, se_kernel, se_kernel_exact
 from .laplace import hessian_weights, likelihood_hessian, probit_terms, whitened_precision
 
-_DEFAULT_LENGTHSCALE = 0.3
-_DEFAULT_OUTPUTSCALE = 1.0
+# The start of a cold fit: BoTorch's initial values under the paper's constraints (raw
+# parameter 0 of Interval(0.05, 0.5) and Interval(0.005, 200), i.e. the interval midpoints).
+_DEFAULT_LENGTHSCALE = 0.275
+_DEFAULT_OUTPUTSCALE = 100.0
+# Below this outputscale the model predicts near coin flips (utility std 0.32 against the probit
+# noise 1): a warm-started fit that ends here is compared with a fit from the default start.
+_FLAT_OUTPUTSCALE = 0.1
 
 
 def _as_batch(x: Tensor, d: int, name: str = "x") -> tuple[Tensor, bool]:
@@ -86,6 +95,7 @@ class PairwiseGPSurrogate:
         jitter: float,
         n_evaluations: int = 0,
         index_map: Tensor | None = None,
+        fit_curvature: np.ndarray | None = None,
     ) -> None:
         self.train_inputs = train_inputs
         self.index_map = torch.arange(train_inputs.shape[0]) if index_map is None else index_map
@@ -98,6 +108,9 @@ class PairwiseGPSurrogate:
         self.jitter = jitter
         self.log_marginal_likelihood = log_marginal_likelihood
         self.n_evaluations = n_evaluations
+        # BFGS Hessian approximation of the hyperparameter objective at this fit: the next
+        # warm-started fit starts its solve from it (see hyperparameters.learn_hyperparameters).
+        self.fit_curvature = fit_curvature
         self._L = L
         self._v_hat = v_hat
         self.utility = L @ v_hat
@@ -134,6 +147,8 @@ class PairwiseGPSurrogate:
         jitter: float = 1e-8,
         duplicate_atol: float = DUPLICATE_ATOL,
         maxiter: int = 200,
+        solver: str = "carried-bfgs",
+        form: str = "auto",
     ) -> PairwiseGPSurrogate:
         """Fit the surrogate to duels.
 
@@ -142,15 +157,24 @@ class PairwiseGPSurrogate:
             comparisons: ``(m, 2)`` long ``[winner_index, loser_index]`` rows into ``X``.
             lengthscale: None (learn, within ``[0.05, 0.5]``), a float or a ``(d,)`` tensor
                 (fixed, the paper's "within-model" setting).
-            outputscale: None (learn, within ``[0.005, 200]``) or a fixed float.
-            warm_start: a previous fit; hyperparameters and the MAP (extended to new points by
-                the previous posterior mean) start from it.
+            outputscale: None (learn, within ``[0.005, 100]``) or a fixed float.
+            warm_start: a previous fit; hyperparameters, the MAP (extended to new points by
+                the previous posterior mean) and the solver's curvature start from it. Without
+                it the solve starts from BoTorch's initial values (lengthscales 0.275,
+                outputscale 100); a warm fit that ends with outputscale < 0.1 (a model that
+                predicts near coin flips) is compared with a fit from that start, keeping the
+                higher objective.
             z_limit: clamp ``|z|`` in the likelihood like BoTorch (3.0); None = exact probit.
             eps_reg: ``C_hat = C + eps_reg I`` in all posterior covariances (paper Sec. 4). The
                 covariances are computed without inverting ``C``, so 0 is safe.
             jitter: relative diagonal jitter on ``K`` (grown automatically if needed).
             duplicate_atol: points closer than this in every coordinate are merged.
-            maxiter: L-BFGS-B iteration cap.
+            maxiter: iteration cap of the hyperparameter solver.
+            solver: ``"carried-bfgs"`` (default) or ``"l-bfgs-b"`` (scipy; the reference), see
+                :func:`~localpbo_core.surrogate.hyperparameters.learn_hyperparameters`.
+            form: how the Laplace approximation is computed while learning: ``"auto"``
+                (default), ``"duels"`` or ``"whitened"``, see
+                :func:`~localpbo_core.surrogate.hyperparameters.evaluate_with_gradient`.
         """
         X = validate_points(X, "X")
         d = X.shape[1]
@@ -182,19 +206,39 @@ class PairwiseGPSurrogate:
         else:
             f_init = torch.zeros(Xu.shape[0], dtype=torch.float64)
 
-        res = learn_hyperparameters(
-            Xu,
-            data.winners,
-            data.losers,
-            ls0,
-            os0,
-            learn_lengthscale=ls_fixed is None,
-            learn_outputscale=os_fixed is None,
-            f_init=f_init,
-            jitter=jitter,
-            z_limit=z_limit,
-            maxiter=maxiter,
-        )
+        def learn(ls_start: Tensor, os_start: float, f_start: Tensor, curvature0: object):
+            return learn_hyperparameters(
+                Xu,
+                data.winners,
+                data.losers,
+                ls_start,
+                os_start,
+                learn_lengthscale=ls_fixed is None,
+                learn_outputscale=os_fixed is None,
+                f_init=f_start,
+                jitter=jitter,
+                z_limit=z_limit,
+                maxiter=maxiter,
+                solver=solver,
+                form=form,
+                curvature0=curvature0,  # type: ignore[arg-type]
+            )
+
+        res = learn(ls0, os0, f_init, None if warm_start is None else warm_start.fit_curvature)
+        if warm_start is not None and os_fixed is None and res.outputscale < _FLAT_OUTPUTSCALE:
+            # The evidence has a second, degenerate basin where the model explains nothing
+            # (outputscale at the prior's lower edge); a warm-started local solve that lands
+            # there is checked against a solve from the default start; the better one is kept.
+            ls_default = ls0 if ls_fixed is not None else torch.full_like(ls0, _DEFAULT_LENGTHSCALE)
+            alt = learn(ls_default, _DEFAULT_OUTPUTSCALE, torch.zeros_like(f_init), None)
+            total = res.n_evaluations + alt.n_evaluations
+            if alt.log_marginal_likelihood > res.log_marginal_likelihood:
+                res = alt
+            res.n_evaluations = total
+        curvature = res.curvature
+        if curvature is None and warm_start is not None and ls_fixed is not None:
+            if os_fixed is not None:  # nothing learned: keep the last curvature for later fits
+                curvature = warm_start.fit_curvature
         return cls(
             train_inputs=Xu,
             winners=data.winners,
@@ -209,6 +253,7 @@ class PairwiseGPSurrogate:
             jitter=jitter,
             n_evaluations=res.n_evaluations,
             index_map=data.index_map,
+            fit_curvature=curvature,
         )
 
     @property
@@ -374,9 +419,10 @@ class PairwiseGPSurrogate:
     # ------------------------------------------------------------------ sampling
     def sample_paths(
         self, num_paths: int, generator: torch.Generator, num_features: int = 1024
-    ) -> Callable[[Tensor], Tensor]:
+    ) -> SamplePaths:
         """Posterior sample paths (see :mod:`.sampling`): a callable ``(N, d) -> (N, num_paths)``
-        differentiable in its input, deterministic given ``generator``."""
+        differentiable in its input, with closed-form input gradients
+        (:meth:`SamplePaths.value_and_grad`), deterministic given ``generator``."""
         from .sampling import draw_sample_paths
 
         return draw_sample_paths(self, num_paths, generator, num_features)

@@ -45,24 +45,29 @@ def _autograd(data, ls, os_, z_limit):
 
 
 @pytest.mark.parametrize(
-    ("d", "n", "outputscale", "z_limit"),
+    ("d", "n", "outputscale", "z_limit", "form"),
     [
-        (1, 10, 2.0, None),
-        (3, 25, 3.7, None),
-        (8, 45, 0.7, None),
-        (20, 60, 5.0, None),
-        (4, 40, 60.0, 3.0),
-        (9, 50, 80.0, 3.0),
+        (1, 10, 2.0, None, "whitened"),
+        (3, 25, 3.7, None, "whitened"),
+        (8, 45, 0.7, None, "whitened"),
+        (20, 60, 5.0, None, "whitened"),
+        (4, 40, 60.0, 3.0, "whitened"),
+        (9, 50, 80.0, 3.0, "whitened"),
+        (1, 10, 2.0, None, "duels"),
+        (3, 25, 3.7, None, "duels"),
+        (8, 45, 0.7, None, "duels"),
+        (20, 60, 5.0, None, "duels"),
+        (6, 50, 90.0, None, "duels"),
     ],
 )
-def test_analytic_gradient_matches_autograd(duels, d, n, outputscale, z_limit):
+def test_analytic_gradient_matches_autograd(duels, d, n, outputscale, z_limit, form):
     data, ls = _problem(duels, d, n, seed=d)
     f0 = torch.zeros(data.X.shape[0], dtype=torch.float64)
-    value, g_ls, g_os, v1, L = evaluate_with_gradient(
-        data.X, data.winners, data.losers, ls, outputscale, f0, 1e-8, z_limit
+    value, g_ls, g_os, f_hat = evaluate_with_gradient(
+        data.X, data.winners, data.losers, ls, outputscale, f0, 1e-8, z_limit, form=form
     )
     if z_limit is not None:  # the clamped branch must actually be exercised
-        t = probit_terms(L @ v1, data.winners, data.losers, z_limit)
+        t = probit_terms(f_hat, data.winners, data.losers, z_limit)
         assert 0 < int((~t.active).sum()) < t.active.numel()
     ref_value, ref_grad = _autograd(data, ls, outputscale, z_limit)
     grad = torch.cat([g_ls, g_os.reshape(1)])
@@ -70,18 +75,27 @@ def test_analytic_gradient_matches_autograd(duels, d, n, outputscale, z_limit):
     torch.testing.assert_close(grad, ref_grad, rtol=0, atol=1e-8 * float(ref_grad.abs().max()))
 
 
-def test_analytic_gradient_matches_finite_differences(duels):
+@pytest.mark.parametrize("form", ["whitened", "duels"])
+def test_analytic_gradient_matches_finite_differences(duels, form):
     data, ls = _problem(duels, 5, 30, seed=2)
     os_ = 2.5
     f0 = torch.zeros(data.X.shape[0], dtype=torch.float64)
 
     def value(log_ls, log_os):
         return evaluate_with_gradient(
-            data.X, data.winners, data.losers, log_ls.exp(), math.exp(log_os), f0, 1e-8, None
+            data.X,
+            data.winners,
+            data.losers,
+            log_ls.exp(),
+            math.exp(log_os),
+            f0,
+            1e-8,
+            None,
+            form=form,
         )[0]
 
-    _, g_ls, g_os, _, _ = evaluate_with_gradient(
-        data.X, data.winners, data.losers, ls, os_, f0, 1e-8, None
+    _, g_ls, g_os, _ = evaluate_with_gradient(
+        data.X, data.winners, data.losers, ls, os_, f0, 1e-8, None, form=form
     )
     h = 1e-5
     base = ls.log()
