@@ -57,6 +57,11 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
     }
     assert summary.best_return == returns[summary.best_id]
     assert summary.first_return == returns[0]
+    assert summary.recommended_return == returns[summary.recommended_id]
+    text = summary.format()
+    assert f"recommended candidate (highest posterior mean utility given all duels): id " \
+        f"{summary.recommended_id}," in text
+    assert f"recommended {returns[summary.recommended_id]:.1f}" in text
     cfg = json.loads(next(m.ros_msg.data for m in msgs if m.channel.topic == RUN_CONFIG.name))
     assert cfg["run_id"] == "loop" and cfg["seed"] == 11 and cfg["budget"] == 30
     # independent reader 2: rosbags

@@ -40,7 +40,8 @@ def add_subcommands(subparsers: Any) -> None:
         description="Bring up optimizer, simulator and oracle nodes plus the MCAP recorder in "
         "one process (private context; nothing leaves the process) and tune until the budget "
         f"is spent. Default: {DEFAULTS['algorithm']} on {DEFAULTS['task']}, budget "
-        f"{DEFAULTS['budget']}. Prints a summary: best candidate, duels, bag path.",
+        f"{DEFAULTS['budget']}. Prints a summary: recommended candidate, incumbent, duels, "
+        "bag path.",
     )
     run.add_argument("--task", default=DEFAULTS["task"], help="task, e.g. swimmer, hopper")
     run.add_argument("--algorithm", default=DEFAULTS["algorithm"], help="e.g. turpbo, sobol")

@@ -28,6 +28,7 @@ import numpy as np
 
 from localpbo_core.optimizers import Duel, InvalidOutcome, Outcome, make_optimizer
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+from localpbo_core.optimizers.recommendation import recommend
 from localpbo_core.problems import Problem, make_problem
 from localpbo_msgs_py import CandidateMsg, DuelOutcome, DuelRequest, Incumbent, RunConfig
 from localpbo_msgs_py.records import OutcomeKind
@@ -212,6 +213,14 @@ class Driver:
         if inc is None:
             return None
         return Incumbent(self.run_id, inc.id, self.native(inc.theta), self.n_duels)
+
+    def recommendation(self) -> Incumbent | None:
+        """The candidate to hand to the user: the highest posterior mean utility given every
+        duel so far (:func:`localpbo_core.optimizers.recommendation.recommend`), task units."""
+        rec = recommend(self.optimizer)
+        if rec is None:
+            return None
+        return Incumbent(self.run_id, rec.id, self.native(rec.theta), self.n_duels)
 
     # ------------------------------------------------------------------ ask / offer
     def ask(self) -> Work:

@@ -61,6 +61,9 @@ class RunSummary:
     recorded: int
     best_return: float | None = None
     first_return: float | None = None
+    recommended_id: int | None = None
+    recommended_theta: tuple[float, ...] = ()
+    recommended_return: float | None = None
 
     def format(self) -> str:
         """Human-readable summary."""
@@ -71,13 +74,28 @@ class RunSummary:
             f"evaluations: {self.evaluations}",
             f"time: {self.seconds:.1f} s",
         ]
+        if self.recommended_id is not None:
+            theta = ", ".join(f"{v:.4f}" for v in self.recommended_theta)
+            lines.append(
+                f"recommended candidate (highest posterior mean utility given all duels): "
+                f"id {self.recommended_id}, θ = [{theta}]"
+            )
         if self.best_id is not None:
             theta = ", ".join(f"{v:.4f}" for v in self.best_theta)
-            lines.append(f"best candidate (from preferences): id {self.best_id}, θ = [{theta}]")
-        if self.best_return is not None and self.first_return is not None:
+            lines.append(f"incumbent (won its latest duel): id {self.best_id}, θ = [{theta}]")
+        returns = [
+            (name, value)
+            for name, value in (
+                ("recommended", self.recommended_return),
+                ("incumbent", self.best_return),
+                ("first candidate", self.first_return),
+            )
+            if value is not None
+        ]
+        if returns:
             lines.append(
-                f"episode return (reported, never shown to the optimizer): best candidate "
-                f"{self.best_return:.1f}, first candidate {self.first_return:.1f}"
+                "episode return (reported, never shown to the optimizer): "
+                + ", ".join(f"{name} {value:.1f}" for name, value in returns)
             )
         lines.append(f"bag: {self.bag}")
         return "\n".join(lines)
@@ -161,6 +179,7 @@ def run_suite(
         while time.monotonic() < settle:
             executor.spin_once(timeout_sec=0.02)
         inc = opt.driver.incumbent()
+        rec = opt.driver.recommendation()
         return RunSummary(
             opt.config.run_id, str(bag) if record else "", opt.state, opt.error,
             opt.driver.n_duels, opt.resumed_duels, opt.driver.optimizer.evaluations_used,
@@ -171,6 +190,9 @@ def run_suite(
             nodes[0].recorded if record else 0,
             None if inc is None else oracle.episode_return(inc.candidate_id),
             oracle.episode_return(0),
+            None if rec is None else rec.candidate_id,
+            () if rec is None else rec.theta,
+            None if rec is None else oracle.episode_return(rec.candidate_id),
         )
     finally:
         for node in nodes:

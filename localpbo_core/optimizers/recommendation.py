@@ -1,0 +1,33 @@
+"""Which evaluated candidate to hand to the user at the end of a run.
+
+An optimizer's ``incumbent`` is its king of the hill: the last candidate that won its duel
+against the previous incumbent. Under noisy preferences (paper eq. noise/pi) one lucky win can
+crown a worse candidate, and a run of them walks the incumbent down. The recommendation instead
+weighs every duel of the run: it fits the pairwise GP of paper Sec. 4 (Laplace posterior,
+hyperparameters learned from the evidence) to all comparisons and returns the evaluated
+candidate with the highest posterior mean utility ``mu(x) = k(x, X) K^{-1} f_hat``. It reads
+only the preferences, never a return.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from localpbo_core.optimizers.base import Candidate
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+from localpbo_core.surrogate import PairwiseGPSurrogate
+
+
+def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
+    """The evaluated candidate with the highest posterior mean utility given all duels so far
+    (ties: lowest id); the incumbent while there is no outcome yet (None before any)."""
+    comparisons = optimizer.comparisons()
+    if comparisons.shape[0] == 0:
+        return optimizer.incumbent
+    X = torch.tensor(optimizer.train_inputs(), dtype=torch.float64)
+    surrogate = PairwiseGPSurrogate.fit(X, torch.tensor(comparisons, dtype=torch.long))
+    with torch.no_grad():
+        mean = surrogate.mean(X).numpy()
+    best = int(np.argmax(mean))  # first maximum: the lowest id
+    return optimizer.history.candidates[best]
