@@ -38,7 +38,8 @@ def oracle_seed(run_seed: int) -> int:
     return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
-def _parse_seeds(text: str) -> list[int]:
+def parse_seeds(text: str) -> list[int]:
+    """Seeds from ``"0,1,2"``, ``"0-4"`` or a mix (``"0-2,7"``); all must be >= 0."""
     seeds: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -371,7 +372,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     )
             if len(set(algorithms)) != len(algorithms):
                 raise ValueError("--algorithm: repeated algorithm")
-            seeds = _parse_seeds(args.seeds)
+            seeds = parse_seeds(args.seeds)
             problem = args.problem
             budget, initial_design = args.budget, args.initial_design
             noise = args.noise

@@ -21,6 +21,7 @@ from .data import DUPLICATE_ATOL, consolidate, validate_comparisons, validate_po
 from .hyperparameters import (
     LENGTHSCALE_BOUNDS,
     OUTPUTSCALE_BOUNDS,
+    FitResult,
     learn_hyperparameters,
 )
 from .kernel import kernel_derivatives, prior_block, se_kernel, se_kernel_exact
@@ -206,7 +207,9 @@ class PairwiseGPSurrogate:
         else:
             f_init = torch.zeros(Xu.shape[0], dtype=torch.float64)
 
-        def learn(ls_start: Tensor, os_start: float, f_start: Tensor, curvature0: object):
+        def learn(
+            ls_start: Tensor, os_start: float, f_start: Tensor, curvature0: np.ndarray | None
+        ) -> FitResult:
             return learn_hyperparameters(
                 Xu,
                 data.winners,
@@ -221,7 +224,7 @@ class PairwiseGPSurrogate:
                 maxiter=maxiter,
                 solver=solver,
                 form=form,
-                curvature0=curvature0,  # type: ignore[arg-type]
+                curvature0=curvature0,
             )
 
         res = learn(ls0, os0, f_init, None if warm_start is None else warm_start.fit_curvature)

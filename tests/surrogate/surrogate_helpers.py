@@ -36,3 +36,17 @@ def botorch_mll_value(model) -> float:
     mll = PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model)
     out = model(model.unconsolidated_datapoints)
     return float(mll(out, model.unconsolidated_comparisons).detach())
+
+
+def learn_kwargs(data, z_limit: float | None) -> dict:
+    """Keyword arguments of ``learn_hyperparameters`` for a cold fit of consolidated ``data``
+    (lengthscales 0.3, outputscale 1, zero MAP start, jitter 1e-8), both learned."""
+    return dict(
+        lengthscale0=torch.full((data.X.shape[1],), 0.3, dtype=torch.float64),
+        outputscale0=1.0,
+        learn_lengthscale=True,
+        learn_outputscale=True,
+        f_init=torch.zeros(data.X.shape[0], dtype=torch.float64),
+        jitter=1e-8,
+        z_limit=z_limit,
+    )

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+from surrogate_helpers import learn_kwargs
 
 from localpbo_core.surrogate import PairwiseGPSurrogate
 from localpbo_core.surrogate.data import consolidate
@@ -89,15 +90,7 @@ def test_mode_matches_the_whitened_map_from_any_start(duels) -> None:
 def test_fits_with_either_form_reach_the_same_optimum(duels) -> None:
     X, comp = duels(4, 45, 11, scale=5.0)
     data = consolidate(X, comp)
-    kw = dict(
-        lengthscale0=torch.full((4,), 0.3, dtype=torch.float64),
-        outputscale0=1.0,
-        learn_lengthscale=True,
-        learn_outputscale=True,
-        f_init=torch.zeros(data.X.shape[0], dtype=torch.float64),
-        jitter=1e-8,
-        z_limit=None,
-    )
+    kw = learn_kwargs(data, z_limit=None)
     a = learn_hyperparameters(data.X, data.winners, data.losers, form="duels", **kw)
     b = learn_hyperparameters(data.X, data.winners, data.losers, form="whitened", **kw)
     assert abs(a.log_marginal_likelihood - b.log_marginal_likelihood) < 1e-7
@@ -105,7 +98,9 @@ def test_fits_with_either_form_reach_the_same_optimum(duels) -> None:
     torch.testing.assert_close(a.v_hat, b.v_hat, rtol=0, atol=1e-6)
 
 
-def test_duel_form_refuses_the_clamped_likelihood(duels) -> None:
+@pytest.mark.parametrize(("z_limit", "form"), [(3.0, "duels"), (None, "dual")])
+def test_bad_form_is_refused(duels, z_limit, form) -> None:
+    """The duel form needs the exact probit; unknown forms are refused."""
     X, comp = duels(2, 10, 0)
     data = consolidate(X, comp)
     with pytest.raises(ValueError, match="form"):
@@ -117,20 +112,8 @@ def test_duel_form_refuses_the_clamped_likelihood(duels) -> None:
             1.0,
             torch.zeros(data.X.shape[0], dtype=torch.float64),
             1e-8,
-            3.0,
-            form="duels",
-        )
-    with pytest.raises(ValueError, match="form"):
-        evaluate_with_gradient(
-            data.X,
-            data.winners,
-            data.losers,
-            torch.full((2,), 0.3, dtype=torch.float64),
-            1.0,
-            torch.zeros(data.X.shape[0], dtype=torch.float64),
-            1e-8,
-            None,
-            form="dual",
+            z_limit,
+            form=form,
         )
 
 

@@ -8,6 +8,7 @@ import math
 
 import pytest
 import torch
+from surrogate_helpers import learn_kwargs
 
 from localpbo_core.surrogate.data import consolidate
 from localpbo_core.surrogate.hyperparameters import (
@@ -112,15 +113,7 @@ def test_analytic_gradient_matches_finite_differences(duels, form):
 def test_analytic_and_autograd_fits_reach_the_same_optimum(duels, z_limit):
     X, comp = duels(4, 35, 5, scale=5.0)
     data = consolidate(X, comp)
-    kw = dict(
-        lengthscale0=torch.full((4,), 0.3, dtype=torch.float64),
-        outputscale0=1.0,
-        learn_lengthscale=True,
-        learn_outputscale=True,
-        f_init=torch.zeros(data.X.shape[0], dtype=torch.float64),
-        jitter=1e-8,
-        z_limit=z_limit,
-    )
+    kw = learn_kwargs(data, z_limit=z_limit)
     fast = learn_hyperparameters(data.X, data.winners, data.losers, **kw)
     ref = learn_hyperparameters(data.X, data.winners, data.losers, analytic_gradient=False, **kw)
     assert abs(fast.log_marginal_likelihood - ref.log_marginal_likelihood) < 1e-7
