@@ -6,7 +6,8 @@ crown a worse candidate, and a run of them walks the incumbent down. The recomme
 weighs every duel of the run: it fits the pairwise GP of paper Sec. 4 (Laplace posterior,
 hyperparameters learned from the evidence) to all comparisons and returns the evaluated
 candidate with the highest posterior mean utility ``mu(x) = k(x, X) K^{-1} f_hat``. It reads
-only the preferences, never a return.
+only the preferences, never a return. When the optimizer keeps a fitted surrogate, the fit is
+warm-started from it.
 """
 
 from __future__ import annotations
@@ -26,7 +27,14 @@ def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
     if comparisons.shape[0] == 0:
         return optimizer.incumbent
     X = torch.tensor(optimizer.train_inputs(), dtype=torch.float64)
-    surrogate = PairwiseGPSurrogate.fit(X, torch.tensor(comparisons, dtype=torch.long))
+    # the optimizer's own last fit (TuRPBO, qEUBO, ...) is a warm start: one refit, not a cold fit
+    previous = getattr(optimizer, "surrogate", None)
+    warm = previous if isinstance(previous, PairwiseGPSurrogate) else None
+    if warm is not None and warm.dim != X.shape[1]:
+        warm = None
+    surrogate = PairwiseGPSurrogate.fit(
+        X, torch.tensor(comparisons, dtype=torch.long), warm_start=warm
+    )
     with torch.no_grad():
         mean = surrogate.mean(X).numpy()
     best = int(np.argmax(mean))  # first maximum: the lowest id

@@ -60,3 +60,25 @@ def test_before_any_outcome_the_incumbent_is_returned() -> None:
     assert recommend(opt) is None
     opt.ask()
     assert recommend(opt) is opt.incumbent
+
+
+def test_turpbo_recommendation_refits_from_its_last_surrogate() -> None:
+    opt = make_optimizer("turpbo", 2, seed=1, budget=14)
+    values: dict[int, float] = {}
+    while not opt.done:
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = _utility(c.theta)
+        opt.tell(
+            [
+                Outcome(d.first, d.second)
+                if values[d.first] >= values[d.second]
+                else Outcome(d.second, d.first)
+                for d in ask.duels
+            ]
+        )
+    assert opt.surrogate is not None
+    X = torch.tensor(opt.train_inputs(), dtype=torch.float64)
+    C = torch.tensor(opt.comparisons(), dtype=torch.long)
+    s = PairwiseGPSurrogate.fit(X, C, warm_start=opt.surrogate)
+    assert recommend(opt).id == int(np.argmax(s.mean(X).detach().numpy()))
