@@ -7,7 +7,7 @@ import pytest
 import scipy.optimize
 import torch
 
-from localpbo_core.surrogate import PairwiseGPSurrogate
+from localpbo_core.surrogate import PairwiseGPSurrogate, pairwise_gp
 from localpbo_core.surrogate.box_bfgs import minimize_box_bfgs, projected_gradient
 
 
@@ -143,3 +143,32 @@ def test_unknown_solver_is_refused() -> None:
     X, comps = _duels(10, 2, seed=0)
     with pytest.raises(ValueError, match="solver"):
         PairwiseGPSurrogate.fit(X, comps, solver="newton")
+
+
+def _flat_basin_case() -> tuple[torch.Tensor, torch.Tensor, PairwiseGPSurrogate]:
+    """8 noisy duels in 2-D whose evidence has a flat local basin (outputscale at the prior's
+    lower edge) next to a better informative one; plus a fit sitting in the flat basin."""
+    g = torch.Generator().manual_seed(147)
+    X = torch.rand(8, 2, generator=g, dtype=torch.float64)
+    u = -8 * ((X - 0.7) ** 2).sum(-1) + 0.7 * torch.randn(8, generator=g, dtype=torch.float64)
+    i = torch.arange(7)
+    w = u[i + 1] > u[i]
+    comps = torch.stack([torch.where(w, i + 1, i), torch.where(w, i, i + 1)], 1)
+    flat = PairwiseGPSurrogate.fit(X, comps, lengthscale=0.5, outputscale=0.01)
+    return X, comps, flat
+
+
+def test_a_warm_fit_stuck_in_the_flat_basin_is_checked_against_the_default_start(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    X, comps, flat = _flat_basin_case()
+    cold = PairwiseGPSurrogate.fit(X, comps)  # from BoTorch's initial values
+    warm = PairwiseGPSurrogate.fit(X, comps, warm_start=flat)
+    assert warm.outputscale > 0.1
+    assert warm.log_marginal_likelihood >= cold.log_marginal_likelihood - 1e-9
+    # without the check the warm-started local solve stays in the worse flat basin
+    monkeypatch.setattr(pairwise_gp, "_FLAT_OUTPUTSCALE", 0.0)
+    stuck = PairwiseGPSurrogate.fit(X, comps, warm_start=flat)
+    assert stuck.outputscale < 0.1
+    assert stuck.log_marginal_likelihood < warm.log_marginal_likelihood - 0.1
+    assert warm.n_evaluations > stuck.n_evaluations  # both solves are counted
