@@ -47,9 +47,8 @@ from localpbo_core.optimizers.gi_acquisition import (
 from localpbo_core.optimizers.local_phase import (
     LocalPhaseOptimizer,
     check_float,
-    check_positive_int,
 )
-from localpbo_core.optimizers.preference_optimizer import step_generator
+from localpbo_core.optimizers.preference_optimizer import check_int, step_generator
 
 VIRTUAL_OPPONENTS = ("incumbent", "centre")
 
@@ -113,7 +112,7 @@ class GIPBO(LocalPhaseOptimizer):
         self.num_local_queries = (
             self.dim
             if num_local_queries is None
-            else check_positive_int(num_local_queries, "num_local_queries")
+            else check_int("num_local_queries", num_local_queries)
         )
         try:
             lo, hi = (float(b) for b in search_bounds)
@@ -128,8 +127,8 @@ class GIPBO(LocalPhaseOptimizer):
             raise ValueError(f"radii: expected a sequence of numbers, got {radii!r}") from exc
         if not self.radii or any(not np.isfinite(r) or r <= 0 for r in self.radii):
             raise ValueError(f"radii: need a non-empty sequence of positive numbers, got {radii}")
-        self.resolution = check_positive_int(resolution, "resolution")
-        self.max_candidates = check_positive_int(max_candidates, "max_candidates")
+        self.resolution = check_int("resolution", resolution)
+        self.max_candidates = check_int("max_candidates", max_candidates)
         self.likelihood_threshold = check_float(
             likelihood_threshold, "likelihood_threshold", 0.0, 0.4999999, low_open=False
         )

@@ -31,13 +31,6 @@ from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
 
 
-def check_positive_int(value: object, field: str, minimum: int = 1) -> int:
-    """Return ``value`` as int if it is an integer ``>= minimum``, else raise ValueError."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ValueError(f"{field}: must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 def check_float(value: object, field: str, low: float, high: float, low_open: bool) -> float:
     """Return ``value`` as float in ``(low, high]`` / ``[low, high]`` or raise ValueError."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating):

@@ -32,9 +32,8 @@ from localpbo_core.optimizers.base import Candidate, Outcome
 from localpbo_core.optimizers.local_phase import (
     LocalPhaseOptimizer,
     check_float,
-    check_positive_int,
 )
-from localpbo_core.optimizers.preference_optimizer import step_generator
+from localpbo_core.optimizers.preference_optimizer import check_int, step_generator
 
 LINE_SEARCHES = ("thompson", "full", "eubo")
 _MAX_REJECTION_ROUNDS = 1000
@@ -120,15 +119,15 @@ class PrefSQP(LocalPhaseOptimizer):
         self.num_local_samples = (
             self.dim
             if num_local_samples is None
-            else check_positive_int(num_local_samples, "num_local_samples")
+            else check_int("num_local_samples", num_local_samples)
         )
         if line_search not in LINE_SEARCHES:
             raise ValueError(f"line_search: must be one of {LINE_SEARCHES}, got {line_search!r}")
         self.line_search = line_search
-        self.line_search_resolution = check_positive_int(
-            line_search_resolution, "line_search_resolution", minimum=2
+        self.line_search_resolution = check_int(
+            "line_search_resolution", line_search_resolution, minimum=2
         )
-        self.num_features = check_positive_int(num_features, "num_features")
+        self.num_features = check_int("num_features", num_features)
         self.eigenvalue_floor = check_float(
             eigenvalue_floor, "eigenvalue_floor", 0.0, 1.0, low_open=True
         )
