@@ -38,7 +38,8 @@ class BoxBFGSResult:
     """Outcome of :func:`minimize_box_bfgs`.
 
     ``hessian`` is the final BFGS approximation of the Hessian of ``f`` (pass it as
-    ``hessian0`` of the next, similar problem); ``message`` says why the solver stopped."""
+    ``hessian0`` of the next, similar problem); ``n_iterations`` counts accepted steps;
+    ``message`` says why the solver stopped."""
 
     x: np.ndarray
     f: float
@@ -134,12 +135,11 @@ def minimize_box_bfgs(
         raise ValueError("the objective is not finite at the start point")
     message = "maximum number of iterations reached"
     converged = False
-    it = 0
-    for it in range(1, maxiter + 1):
+    steps = 0  # accepted steps
+    for _ in range(maxiter):
         pg = projected_gradient(x, g, lo, hi)
         if np.max(np.abs(pg), initial=0.0) <= gtol:
             message, converged = "projected gradient <= gtol", True
-            it -= 1
             break
         free = pg != 0.0
         step = _free_step(B, g, free)
@@ -183,6 +183,7 @@ def minimize_box_bfgs(
         B = _damped_bfgs_update(B, s, y)
         f_old = f
         x, f, g = x_new, f_new, g_new
+        steps += 1
         if (f_old - f) <= ftol * max(abs(f_old), abs(f), 1.0):
             message, converged = "relative reduction of f <= ftol", True
             break
@@ -192,7 +193,7 @@ def minimize_box_bfgs(
         g=g,
         hessian=B,
         n_evaluations=evals,
-        n_iterations=it,
+        n_iterations=steps,
         converged=converged,
         message=message,
     )

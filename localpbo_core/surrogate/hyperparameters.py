@@ -47,7 +47,7 @@ OUTPUTSCALE_BOUNDS = (0.005, 100.0)
 SOLVERS = ("carried-bfgs", "l-bfgs-b")
 FORMS = ("auto", "duels", "whitened")
 # Converted to float64 as BoTorch's model is (``.to(torch.float64)``): left in float32 the log
-# densities are rounded to ~1e-7 relative, which is noise for L-BFGS at ftol 1e-10.
+# densities are rounded to ~1e-7 relative, which is noise at the fit's tolerance.
 _LS_PRIOR = GammaPrior(concentration=2.4, rate=2.7).double()
 _OS_PRIOR = SmoothedBoxPrior(a=0.01, b=100.0).double()
 # Newton tolerance of the MAP solve inside each objective evaluation. The evidence is then

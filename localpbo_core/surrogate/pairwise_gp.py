@@ -239,9 +239,9 @@ class PairwiseGPSurrogate:
                 res = alt
             res.n_evaluations = total
         curvature = res.curvature
-        if curvature is None and warm_start is not None and ls_fixed is not None:
-            if os_fixed is not None:  # nothing learned: keep the last curvature for later fits
-                curvature = warm_start.fit_curvature
+        nothing_learned = ls_fixed is not None and os_fixed is not None
+        if nothing_learned and warm_start is not None:  # keep the last curvature for later fits
+            curvature = warm_start.fit_curvature
         return cls(
             train_inputs=Xu,
             winners=data.winners,
