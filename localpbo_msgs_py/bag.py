@@ -84,9 +84,7 @@ class BagWriter:
             raise ValueError(f"flush_interval_s must be > 0, got {flush_interval_s}")
         self.path = Path(path)
         self._stream: BinaryIO = open(self.path, "wb")
-        self._writer = Writer(
-            self._stream, chunk_size=chunk_size, compression=CompressionType.NONE
-        )
+        self._writer = Writer(self._stream, chunk_size=chunk_size, compression=CompressionType.NONE)
         self._writer.start(profile=PROFILE, library=LIBRARY)
         self._flush_interval = flush_interval_s
         self._fsync = fsync
@@ -165,7 +163,9 @@ class BagWriter:
         if ros_type_name(msg) != expected:
             raise ValueError(f"topic {topic} has type {expected}, got {ros_type_name(msg)}")
         self.write_serialized(
-            topic, serialize_message(msg), log_time_ns=log_time_ns,
+            topic,
+            serialize_message(msg),
+            log_time_ns=log_time_ns,
             publish_time_ns=publish_time_ns,
         )
 
@@ -410,10 +410,10 @@ def summarize(path: str | os.PathLike[str]) -> BagSummary:
         info = _channel_info(state, channel_id)
         topics.append(
             TopicSummary(
-                info.topic, info.type_name, counts.get(channel_id, 0),
+                info.topic,
+                info.type_name,
+                counts.get(channel_id, 0),
                 info.metadata.get(QOS_METADATA_KEY, ""),
             )
         )
-    return BagSummary(
-        str(path), tuple(topics), total, start, end, state.complete, state.error
-    )
+    return BagSummary(str(path), tuple(topics), total, start, end, state.complete, state.error)

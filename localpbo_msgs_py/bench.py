@@ -70,10 +70,14 @@ def main(argv: list[str] | None = None) -> None:
         count = sum(1 for _ in read_messages(path))
         read_us = (time.perf_counter() - start) / count * 1e6
     print(f"bag write (serialize + record + periodic flush): {write_us:.1f} µs/msg")
-    print(f"bag read (stream + deserialize): {read_us:.1f} µs/msg; "
-          f"{size / args.n:.0f} bytes/msg on disk")
-    print(f"recording cost per duel, assuming 5 messages (candidate, episode result, duel "
-          f"request, duel outcome, incumbent): {5 * write_us / 1000:.3f} ms")
+    print(
+        f"bag read (stream + deserialize): {read_us:.1f} µs/msg; "
+        f"{size / args.n:.0f} bytes/msg on disk"
+    )
+    print(
+        f"recording cost per duel, assuming 5 messages (candidate, episode result, duel "
+        f"request, duel outcome, incumbent): {5 * write_us / 1000:.3f} ms"
+    )
 
 
 if __name__ == "__main__":

@@ -19,8 +19,22 @@ SEPARATOR = "=" * 80
 _TYPE_NAME = re.compile(r"([a-zA-Z][a-zA-Z0-9_]*)/(?:msg/)?([a-zA-Z][a-zA-Z0-9_]*)")
 _FIELD_TYPE = re.compile(r"(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+")
 _PRIMITIVES = frozenset(
-    {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16",
-     "int32", "uint32", "int64", "uint64", "string"}
+    {
+        "bool",
+        "byte",
+        "char",
+        "float32",
+        "float64",
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "string",
+    }
 )
 
 
@@ -46,9 +60,7 @@ def msg_file_text(package: str, name: str) -> str:
         path = root / "share" / package / "msg" / f"{name}.msg"
         if path.is_file():
             return path.read_text(encoding="utf-8")
-    raise FileNotFoundError(
-        f"no {package}/msg/{name}.msg under {[str(r) for r in share_roots()]}"
-    )
+    raise FileNotFoundError(f"no {package}/msg/{name}.msg under {[str(r) for r in share_roots()]}")
 
 
 def msg_dependencies(text: str, package: str) -> list[str]:

@@ -131,14 +131,16 @@ class EpisodeResult:
             cid = parse_id(v["candidate_id"], "candidate_id")
             if v["status"] == EpisodeStatus.OK.value:
                 require_keys(
-                    v, ("run_id", "candidate_id", "status", "episode_return"),
+                    v,
+                    ("run_id", "candidate_id", "status", "episode_return"),
                     context=" (must be absent when status is ok)",
                 )
                 _check_level(level, LEVEL_OK)
                 return cls.ok(run_id, cid, parse_float(v["episode_return"], "episode_return"))
             if v["status"] == EpisodeStatus.FAILED.value:
                 require_keys(
-                    v, ("run_id", "candidate_id", "status", "error"),
+                    v,
+                    ("run_id", "candidate_id", "status", "error"),
                     context=" (must be absent when status is failed)",
                 )
                 _check_level(level, LEVEL_ERROR)
@@ -253,21 +255,27 @@ class DuelOutcome:
             raise FieldError("reason", f"must be empty when {self.kind}")
 
     @classmethod
-    def decisive(
-        cls, request: DuelRequest, winner_id: int
-    ) -> DuelOutcome:
+    def decisive(cls, request: DuelRequest, winner_id: int) -> DuelOutcome:
         """``winner_id`` beat the other candidate of ``request``."""
         loser = request.second_id if winner_id == request.first_id else request.first_id
         return cls(
-            request.run_id, request.duel_id, request.first_id, request.second_id,
-            OutcomeKind.DECISIVE, winner_id, loser,
+            request.run_id,
+            request.duel_id,
+            request.first_id,
+            request.second_id,
+            OutcomeKind.DECISIVE,
+            winner_id,
+            loser,
         )
 
     @classmethod
     def indifferent(cls, request: DuelRequest) -> DuelOutcome:
         """Neither candidate of ``request`` was preferred."""
         return cls(
-            request.run_id, request.duel_id, request.first_id, request.second_id,
+            request.run_id,
+            request.duel_id,
+            request.first_id,
+            request.second_id,
             OutcomeKind.INDIFFERENT,
         )
 
@@ -275,8 +283,12 @@ class DuelOutcome:
     def failed(cls, request: DuelRequest, reason: str) -> DuelOutcome:
         """The duel could not be judged (missing episode, failed episode, timeout, ...)."""
         return cls(
-            request.run_id, request.duel_id, request.first_id, request.second_id,
-            OutcomeKind.FAILED, reason=reason,
+            request.run_id,
+            request.duel_id,
+            request.first_id,
+            request.second_id,
+            OutcomeKind.FAILED,
+            reason=reason,
         )
 
     def encode(self) -> DiagnosticStatus:
@@ -315,13 +327,19 @@ class DuelOutcome:
             kind = v["kind"]
             if kind == OutcomeKind.DECISIVE.value:
                 require_keys(
-                    v, (*base, "winner_id", "loser_id"),
+                    v,
+                    (*base, "winner_id", "loser_id"),
                     context=" (must be absent when kind is decisive)",
                 )
                 _check_level(level, LEVEL_OK)
                 return cls(
-                    run_id, duel_id, first, second, OutcomeKind.DECISIVE,
-                    parse_id(v["winner_id"], "winner_id"), parse_id(v["loser_id"], "loser_id"),
+                    run_id,
+                    duel_id,
+                    first,
+                    second,
+                    OutcomeKind.DECISIVE,
+                    parse_id(v["winner_id"], "winner_id"),
+                    parse_id(v["loser_id"], "loser_id"),
                 )
             if kind == OutcomeKind.INDIFFERENT.value:
                 require_keys(v, base, context=" (must be absent when kind is indifferent)")

@@ -33,8 +33,18 @@ from localpbo_msgs_py.errors import DecodeError, FieldError
 TYPE_NAME = "std_msgs/msg/String"
 SCHEMA = "localpbo/run_config/v1"
 MAX_CONFIG_BYTES = 1 << 20
-KEYS = ("schema", "run_id", "algorithm", "task", "dim", "lower", "upper", "seed", "budget",
-        "options")
+KEYS = (
+    "schema",
+    "run_id",
+    "algorithm",
+    "task",
+    "dim",
+    "lower",
+    "upper",
+    "seed",
+    "budget",
+    "options",
+)
 
 
 def _no_constant(name: str) -> Any:
@@ -149,8 +159,15 @@ class RunConfig:
             if not isinstance(obj["options"], dict):
                 raise FieldError("options", "must be a JSON object")
             return cls(
-                run_id, obj["algorithm"], obj["task"], obj["dim"], tuple(obj["lower"]),
-                tuple(obj["upper"]), obj["seed"], obj["budget"], obj["options"],
+                run_id,
+                obj["algorithm"],
+                obj["task"],
+                obj["dim"],
+                tuple(obj["lower"]),
+                tuple(obj["upper"]),
+                obj["seed"],
+                obj["budget"],
+                obj["options"],
             )
 
         return guarded("run_config", body)

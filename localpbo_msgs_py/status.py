@@ -115,7 +115,13 @@ class Status:
                     raise FieldError(key, "unexpected key")
             stamp = msg.header.stamp
             return cls(
-                run_id, node, v["state"], level, message, counters, info,
+                run_id,
+                node,
+                v["state"],
+                level,
+                message,
+                counters,
+                info,
                 stamp.sec * 1_000_000_000 + stamp.nanosec if stamp.sec >= 0 else -1,
             )
 

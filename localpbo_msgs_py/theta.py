@@ -142,8 +142,13 @@ class CandidateMsg:
 
         def body() -> CandidateMsg:
             fields, theta = _read_theta(
-                msg, "candidate", ("kind", "run", "candidate"),
-                expected_dim=expected_dim, lower=lower, upper=upper, max_len=max_len,
+                msg,
+                "candidate",
+                ("kind", "run", "candidate"),
+                expected_dim=expected_dim,
+                lower=lower,
+                upper=upper,
+                max_len=max_len,
             )
             run_id = check_run_id(fields["run"], "run")
             check_expected_run(run_id, expected_run_id, "run")
@@ -198,8 +203,13 @@ class Incumbent:
 
         def body() -> Incumbent:
             fields, theta = _read_theta(
-                msg, "incumbent", ("kind", "run", "candidate", "duels"),
-                expected_dim=expected_dim, lower=lower, upper=upper, max_len=max_len,
+                msg,
+                "incumbent",
+                ("kind", "run", "candidate", "duels"),
+                expected_dim=expected_dim,
+                lower=lower,
+                upper=upper,
+                max_len=max_len,
             )
             run_id = check_run_id(fields["run"], "run")
             check_expected_run(run_id, expected_run_id, "run")

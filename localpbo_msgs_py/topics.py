@@ -53,42 +53,91 @@ class TopicSpec:
 
 
 CANDIDATE = TopicSpec(
-    "candidate", "/localpbo/candidate", Float64MultiArray, "std_msgs/msg/Float64MultiArray",
-    EVENT_QOS, "optimizer", ("simulator",), "CandidateMsg",
+    "candidate",
+    "/localpbo/candidate",
+    Float64MultiArray,
+    "std_msgs/msg/Float64MultiArray",
+    EVENT_QOS,
+    "optimizer",
+    ("simulator",),
+    "CandidateMsg",
     "θ to evaluate, task units; ids in layout.dim[0].label",
 )
 EPISODE_RESULT = TopicSpec(
-    "episode_result", "/localpbo/episode_result", DiagnosticStatus,
-    "diagnostic_msgs/msg/DiagnosticStatus", EVENT_QOS, "simulator", ("oracle",),
-    "EpisodeResult", "episode return (or failure) of one candidate",
+    "episode_result",
+    "/localpbo/episode_result",
+    DiagnosticStatus,
+    "diagnostic_msgs/msg/DiagnosticStatus",
+    EVENT_QOS,
+    "simulator",
+    ("oracle",),
+    "EpisodeResult",
+    "episode return (or failure) of one candidate",
 )
 DUEL_REQUEST = TopicSpec(
-    "duel_request", "/localpbo/duel_request", DiagnosticStatus,
-    "diagnostic_msgs/msg/DiagnosticStatus", EVENT_QOS, "optimizer", ("oracle",),
-    "DuelRequest", "compare candidates first_id and second_id",
+    "duel_request",
+    "/localpbo/duel_request",
+    DiagnosticStatus,
+    "diagnostic_msgs/msg/DiagnosticStatus",
+    EVENT_QOS,
+    "optimizer",
+    ("oracle",),
+    "DuelRequest",
+    "compare candidates first_id and second_id",
 )
 DUEL_OUTCOME = TopicSpec(
-    "duel_outcome", "/localpbo/duel_outcome", DiagnosticStatus,
-    "diagnostic_msgs/msg/DiagnosticStatus", EVENT_QOS, "oracle", ("optimizer",),
-    "DuelOutcome", "winner/loser, indifferent or failed for one duel",
+    "duel_outcome",
+    "/localpbo/duel_outcome",
+    DiagnosticStatus,
+    "diagnostic_msgs/msg/DiagnosticStatus",
+    EVENT_QOS,
+    "oracle",
+    ("optimizer",),
+    "DuelOutcome",
+    "winner/loser, indifferent or failed for one duel",
 )
 INCUMBENT = TopicSpec(
-    "incumbent", "/localpbo/incumbent", Float64MultiArray, "std_msgs/msg/Float64MultiArray",
-    STATE_QOS, "optimizer", ("any",), "Incumbent",
+    "incumbent",
+    "/localpbo/incumbent",
+    Float64MultiArray,
+    "std_msgs/msg/Float64MultiArray",
+    STATE_QOS,
+    "optimizer",
+    ("any",),
+    "Incumbent",
     "current best θ (from preferences only), task units; latched",
 )
 RUN_CONFIG = TopicSpec(
-    "run_config", "/localpbo/run_config", String, "std_msgs/msg/String", STATE_QOS,
-    "optimizer", ("simulator", "oracle", "recorder"), "RunConfig",
+    "run_config",
+    "/localpbo/run_config",
+    String,
+    "std_msgs/msg/String",
+    STATE_QOS,
+    "optimizer",
+    ("simulator", "oracle", "recorder"),
+    "RunConfig",
     "JSON run configuration; latched",
 )
 STATUS = TopicSpec(
-    "status", "/localpbo/status", DiagnosticArray, "diagnostic_msgs/msg/DiagnosticArray",
-    STATUS_QOS, "every node", ("any",), "Status", "node state and drop counters",
+    "status",
+    "/localpbo/status",
+    DiagnosticArray,
+    "diagnostic_msgs/msg/DiagnosticArray",
+    STATUS_QOS,
+    "every node",
+    ("any",),
+    "Status",
+    "node state and drop counters",
 )
 
 ALL_TOPICS: tuple[TopicSpec, ...] = (
-    CANDIDATE, EPISODE_RESULT, DUEL_REQUEST, DUEL_OUTCOME, INCUMBENT, RUN_CONFIG, STATUS,
+    CANDIDATE,
+    EPISODE_RESULT,
+    DUEL_REQUEST,
+    DUEL_OUTCOME,
+    INCUMBENT,
+    RUN_CONFIG,
+    STATUS,
 )
 TOPICS_BY_KEY: dict[str, TopicSpec] = {t.key: t for t in ALL_TOPICS}
 TOPICS_BY_NAME: dict[str, TopicSpec] = {t.name: t for t in ALL_TOPICS}

@@ -30,8 +30,12 @@ from ._helpers import plain
 from .test_msgs_codecs import all_values
 
 TOPIC_OF = {
-    "CandidateMsg": T.CANDIDATE, "Incumbent": T.INCUMBENT, "EpisodeResult": T.EPISODE_RESULT,
-    "DuelRequest": T.DUEL_REQUEST, "DuelOutcome": T.DUEL_OUTCOME, "RunConfig": T.RUN_CONFIG,
+    "CandidateMsg": T.CANDIDATE,
+    "Incumbent": T.INCUMBENT,
+    "EpisodeResult": T.EPISODE_RESULT,
+    "DuelRequest": T.DUEL_REQUEST,
+    "DuelOutcome": T.DUEL_OUTCOME,
+    "RunConfig": T.RUN_CONFIG,
     "Status": T.STATUS,
 }
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,20 +66,25 @@ def test_two_independent_readers_agree(tmp_path: Path) -> None:
     expected = [(topic, plain(msg, msg), t) for topic, _, msg, t in stream]
 
     ours = list(read_messages(path))
-    assert [(m.topic, plain(m.message, ref), m.log_time_ns)
-            for m, (_, _, ref, _) in zip(ours, stream, strict=True)] == expected
+    assert [
+        (m.topic, plain(m.message, ref), m.log_time_ns)
+        for m, (_, _, ref, _) in zip(ours, stream, strict=True)
+    ] == expected
     # our codecs decode what was read back into the very same values
     for m, (_, value, _, _) in zip(ours, stream, strict=True):
         assert type(value).decode(m.message, expected_run_id="run-7") == value
 
     via_mcap_ros2 = list(read_ros2_messages(str(path)))
-    assert [(m.channel.topic, plain(m.ros_msg, ref), m.log_time_ns)
-            for m, (_, _, ref, _) in zip(via_mcap_ros2, stream, strict=True)] == expected
+    assert [
+        (m.channel.topic, plain(m.ros_msg, ref), m.log_time_ns)
+        for m, (_, _, ref, _) in zip(via_mcap_ros2, stream, strict=True)
+    ] == expected
 
     with AnyReader([path]) as reader:
-        via_rosbags = [(c.topic, plain(reader.deserialize(raw, c.msgtype), ref), t)
-                       for (c, t, raw), (_, _, ref, _) in zip(reader.messages(), stream,
-                                                              strict=True)]
+        via_rosbags = [
+            (c.topic, plain(reader.deserialize(raw, c.msgtype), ref), t)
+            for (c, t, raw), (_, _, ref, _) in zip(reader.messages(), stream, strict=True)
+        ]
         types = {c.topic: c.msgtype for c in reader.connections}
     assert via_rosbags == expected
     assert types == {spec.name: spec.type_name for spec in T.ALL_TOPICS}
@@ -161,8 +170,9 @@ def read_with_mcap_stream(path: Path) -> list[tuple[str, Any, int]]:
         try:
             for schema, channel, message in reader.iter_messages(log_time_order=False):
                 cls = message_class(schema.name)
-                out.append((channel.topic, deserialize_message(message.data, cls),
-                            message.log_time))
+                out.append(
+                    (channel.topic, deserialize_message(message.data, cls), message.log_time)
+                )
         except (McapError, EOFError, ValueError):
             pass
     return out
@@ -183,11 +193,15 @@ def test_copy_of_live_file_is_readable(tmp_path: Path) -> None:
     finally:
         writer.close()
     expected = [(topic, plain(msg, msg), t) for topic, _, msg, t in stream]
-    got = [(m.topic, plain(m.message, ref), m.log_time_ns)
-           for m, (_, _, ref, _) in zip(read_messages(copy), stream, strict=True)]
+    got = [
+        (m.topic, plain(m.message, ref), m.log_time_ns)
+        for m, (_, _, ref, _) in zip(read_messages(copy), stream, strict=True)
+    ]
     assert got == expected
-    independent = [(topic, plain(msg, ref), t) for (topic, msg, t), (_, _, ref, _)
-                   in zip(read_with_mcap_stream(copy), stream, strict=True)]
+    independent = [
+        (topic, plain(msg, ref), t)
+        for (topic, msg, t), (_, _, ref, _) in zip(read_with_mcap_stream(copy), stream, strict=True)
+    ]
     assert independent == expected
     info = summarize(copy)
     assert not info.complete and info.message_count == len(stream)
@@ -205,8 +219,10 @@ def test_cut_anywhere_yields_a_prefix(tmp_path: Path) -> None:
     cut_path = tmp_path / "cut.mcap"
     for cut in [*range(0, len(data), max(1, len(data) // 150)), len(data) - 1]:
         cut_path.write_bytes(data[:cut])
-        got = [(m.topic, plain(m.message, ref), m.log_time_ns)
-               for m, (_, _, ref, _) in zip(read_messages(cut_path), stream, strict=False)]
+        got = [
+            (m.topic, plain(m.message, ref), m.log_time_ns)
+            for m, (_, _, ref, _) in zip(read_messages(cut_path), stream, strict=False)
+        ]
         assert got == expected[: len(got)]
         counts.append(len(got))
         assert summarize(cut_path).message_count == len(got)
@@ -232,11 +248,15 @@ time.sleep(60)
 @pytest.mark.timeout(60)
 def test_sigkill_loses_nothing_already_flushed(tmp_path: Path) -> None:
     path = tmp_path / "killed.mcap"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get(
-        "PYTHONPATH", "")]), "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF",
+    }
     n = 500
-    proc = subprocess.Popen([sys.executable, "-c", CHILD, str(path), str(n)],
-                            stdout=subprocess.PIPE, env=env, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(path), str(n)], stdout=subprocess.PIPE, env=env, text=True
+    )
     try:
         assert proc.stdout is not None
         assert proc.stdout.readline().strip() == "written"

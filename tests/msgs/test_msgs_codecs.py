@@ -58,12 +58,27 @@ def all_values(rng: np.random.Generator) -> list[Any]:
         DuelOutcome.decisive(REQ, 3),
         DuelOutcome.indifferent(REQ),
         DuelOutcome.failed(REQ, "episode of candidate 9 failed"),
-        RunConfig("run-7", "gipbo", "hopper", d, tuple(-abs(v) - 1 for v in theta),
-                  tuple(abs(v) + 1 for v in theta), 11, 300,
-                  {"lr": 0.25, "nested": {"k": [1, "a", None, True]}}),
-        Status("run-7", "optimizer", "running", 1, "2 messages dropped",
-               {"dropped_wrong_run": 2, "duels_done": 40}, {"algorithm": "gipbo"},
-               1_700_000_000_123_456_789),
+        RunConfig(
+            "run-7",
+            "gipbo",
+            "hopper",
+            d,
+            tuple(-abs(v) - 1 for v in theta),
+            tuple(abs(v) + 1 for v in theta),
+            11,
+            300,
+            {"lr": 0.25, "nested": {"k": [1, "a", None, True]}},
+        ),
+        Status(
+            "run-7",
+            "optimizer",
+            "running",
+            1,
+            "2 messages dropped",
+            {"dropped_wrong_run": 2, "duels_done": 40},
+            {"algorithm": "gipbo"},
+            1_700_000_000_123_456_789,
+        ),
     ]
 
 
@@ -99,8 +114,13 @@ def test_keyvalue_wire_format() -> None:
     assert isinstance(msg, DiagnosticStatus)
     assert msg.name == "localpbo/duel_outcome" and msg.level == b"\x00"
     assert {kv.key: kv.value for kv in msg.values} == {
-        "run_id": "run-7", "duel_id": "12", "first_id": "3", "second_id": "9",
-        "kind": "decisive", "winner_id": "9", "loser_id": "3",
+        "run_id": "run-7",
+        "duel_id": "12",
+        "first_id": "3",
+        "second_id": "9",
+        "kind": "decisive",
+        "winner_id": "9",
+        "loser_id": "3",
     }
     failed = EpisodeResult.failed("r", 1, "boom").encode()
     assert failed.level == b"\x02"
@@ -115,8 +135,13 @@ def test_label_keys_accepted_in_any_order() -> None:
 
 
 # ----------------------------------------------------------------- rejections
-def cand(label: str = "kind=candidate;run=r1;candidate=3", data: Any = (0.1, 0.2),
-         size: int | None = None, ndims: int = 1, offset: int = 0) -> Float64MultiArray:
+def cand(
+    label: str = "kind=candidate;run=r1;candidate=3",
+    data: Any = (0.1, 0.2),
+    size: int | None = None,
+    ndims: int = 1,
+    offset: int = 0,
+) -> Float64MultiArray:
     msg = Float64MultiArray()
     n = len(data) if size is None else size
     msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n) for _ in range(ndims)]
@@ -125,11 +150,13 @@ def cand(label: str = "kind=candidate;run=r1;candidate=3", data: Any = (0.1, 0.2
     return msg
 
 
-def kv_status(name: str, values: dict[str, str] | list[tuple[str, str]], level: int = 0
-              ) -> DiagnosticStatus:
+def kv_status(
+    name: str, values: dict[str, str] | list[tuple[str, str]], level: int = 0
+) -> DiagnosticStatus:
     pairs = values.items() if isinstance(values, dict) else values
-    return DiagnosticStatus(level=bytes([level]), name=name,
-                            values=[KeyValue(key=k, value=v) for k, v in pairs])
+    return DiagnosticStatus(
+        level=bytes([level]), name=name, values=[KeyValue(key=k, value=v) for k, v in pairs]
+    )
 
 
 EP = {"run_id": "r1", "candidate_id": "3", "status": "ok", "episode_return": "1.5"}
@@ -143,13 +170,15 @@ def ep(**kw: str | None) -> DiagnosticStatus:
 
 
 def dreq(**kw: str | None) -> DiagnosticStatus:
-    return kv_status("localpbo/duel_request",
-                     {k: v for k, v in {**DR, **kw}.items() if v is not None})
+    return kv_status(
+        "localpbo/duel_request", {k: v for k, v in {**DR, **kw}.items() if v is not None}
+    )
 
 
 def dout(level: int = 0, **kw: str | None) -> DiagnosticStatus:
-    return kv_status("localpbo/duel_outcome",
-                     {k: v for k, v in {**DO, **kw}.items() if v is not None}, level)
+    return kv_status(
+        "localpbo/duel_outcome", {k: v for k, v in {**DO, **kw}.items() if v is not None}, level
+    )
 
 
 GOOD_CONFIG = RunConfig("r1", "gipbo", "hopper", 2, (0.0, -1.0), (1.0, 1.0), 3, 10, {})
@@ -176,135 +205,334 @@ ST = [("run_id", "r1"), ("node", "optimizer"), ("state", "running")]
 
 CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
     # (case id, decoder, ros message, expected field, expected substring of the problem)
-    ("cand-wrong-length", lambda m: CandidateMsg.decode(m, expected_dim=3), cand(),
-     "data", "length 2, expected 3"),
+    (
+        "cand-wrong-length",
+        lambda m: CandidateMsg.decode(m, expected_dim=3),
+        cand(),
+        "data",
+        "length 2, expected 3",
+    ),
     ("cand-nan", CandidateMsg.decode, cand(data=(0.1, math.nan)), "data[1]", "finite"),
     ("cand-inf", CandidateMsg.decode, cand(data=(-math.inf, 0.0)), "data[0]", "finite"),
-    ("cand-negative-id", CandidateMsg.decode, cand("kind=candidate;run=r1;candidate=-3"),
-     "candidate", "non-negative integer id"),
-    ("cand-float-id", CandidateMsg.decode, cand("kind=candidate;run=r1;candidate=1.5"),
-     "candidate", "non-negative integer id"),
-    ("cand-leading-zero-id", CandidateMsg.decode, cand("kind=candidate;run=r1;candidate=07"),
-     "candidate", "non-negative integer id"),
-    ("cand-id-overflow", CandidateMsg.decode,
-     cand("kind=candidate;run=r1;candidate=9223372036854775808"), "candidate", "at most"),
-    ("cand-wrong-run", lambda m: CandidateMsg.decode(m, expected_run_id="r2"), cand(),
-     "run", "wrong run"),
-    ("cand-bad-run-id", CandidateMsg.decode, cand("kind=candidate;run=a b;candidate=1"),
-     "run", "not a run id"),
-    ("cand-above-bound", lambda m: CandidateMsg.decode(m, lower=(0, 0), upper=(1, 0.15)),
-     cand(), "data[1]", "above the upper bound"),
-    ("cand-below-bound", lambda m: CandidateMsg.decode(m, lower=(0.5, 0), upper=(1, 1)),
-     cand(), "data[0]", "below the lower bound"),
-    ("cand-huge", lambda m: CandidateMsg.decode(m, max_len=1000), cand(data=[0.0] * 1001),
-     "data", "more than the cap 1000"),
-    ("cand-huge-default-cap", CandidateMsg.decode, cand(data=np.zeros(70000)),
-     "data", "more than the cap 65536"),
+    (
+        "cand-negative-id",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;candidate=-3"),
+        "candidate",
+        "non-negative integer id",
+    ),
+    (
+        "cand-float-id",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;candidate=1.5"),
+        "candidate",
+        "non-negative integer id",
+    ),
+    (
+        "cand-leading-zero-id",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;candidate=07"),
+        "candidate",
+        "non-negative integer id",
+    ),
+    (
+        "cand-id-overflow",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;candidate=9223372036854775808"),
+        "candidate",
+        "at most",
+    ),
+    (
+        "cand-wrong-run",
+        lambda m: CandidateMsg.decode(m, expected_run_id="r2"),
+        cand(),
+        "run",
+        "wrong run",
+    ),
+    (
+        "cand-bad-run-id",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=a b;candidate=1"),
+        "run",
+        "not a run id",
+    ),
+    (
+        "cand-above-bound",
+        lambda m: CandidateMsg.decode(m, lower=(0, 0), upper=(1, 0.15)),
+        cand(),
+        "data[1]",
+        "above the upper bound",
+    ),
+    (
+        "cand-below-bound",
+        lambda m: CandidateMsg.decode(m, lower=(0.5, 0), upper=(1, 1)),
+        cand(),
+        "data[0]",
+        "below the lower bound",
+    ),
+    (
+        "cand-huge",
+        lambda m: CandidateMsg.decode(m, max_len=1000),
+        cand(data=[0.0] * 1001),
+        "data",
+        "more than the cap 1000",
+    ),
+    (
+        "cand-huge-default-cap",
+        CandidateMsg.decode,
+        cand(data=np.zeros(70000)),
+        "data",
+        "more than the cap 65536",
+    ),
     ("cand-empty", CandidateMsg.decode, cand(data=()), "data", "empty"),
-    ("cand-missing-key", CandidateMsg.decode, cand("kind=candidate;run=r1"),
-     "layout.dim[0].label", "missing key 'candidate'"),
-    ("cand-extra-key", CandidateMsg.decode, cand("kind=candidate;run=r1;candidate=1;x=2"),
-     "layout.dim[0].label", "unexpected key 'x'"),
-    ("cand-dup-key", CandidateMsg.decode, cand("kind=candidate;run=r1;run=r1;candidate=1"),
-     "layout.dim[0].label", "more than once"),
+    (
+        "cand-missing-key",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1"),
+        "layout.dim[0].label",
+        "missing key 'candidate'",
+    ),
+    (
+        "cand-extra-key",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;candidate=1;x=2"),
+        "layout.dim[0].label",
+        "unexpected key 'x'",
+    ),
+    (
+        "cand-dup-key",
+        CandidateMsg.decode,
+        cand("kind=candidate;run=r1;run=r1;candidate=1"),
+        "layout.dim[0].label",
+        "more than once",
+    ),
     ("cand-not-kv", CandidateMsg.decode, cand("theta"), "layout.dim[0].label", "key=value"),
-    ("cand-wrong-kind", CandidateMsg.decode,
-     Incumbent("r1", 1, (1.0,), 0).encode(), "layout.dim[0].label", "unexpected key 'duels'"),
+    (
+        "cand-wrong-kind",
+        CandidateMsg.decode,
+        Incumbent("r1", 1, (1.0,), 0).encode(),
+        "layout.dim[0].label",
+        "unexpected key 'duels'",
+    ),
     ("cand-size-mismatch", CandidateMsg.decode, cand(size=5), "layout.dim[0].size", "is 5"),
     ("cand-two-dims", CandidateMsg.decode, cand(ndims=2), "layout.dim", "exactly 1"),
     ("cand-offset", CandidateMsg.decode, cand(offset=1), "layout.data_offset", "must be 0"),
-    ("cand-wrong-type", CandidateMsg.decode, String(data="x"), "message",
-     "expected std_msgs/msg/Float64MultiArray"),
+    (
+        "cand-wrong-type",
+        CandidateMsg.decode,
+        String(data="x"),
+        "message",
+        "expected std_msgs/msg/Float64MultiArray",
+    ),
     ("cand-none", CandidateMsg.decode, None, "message", "got NoneType"),
-    ("inc-wrong-kind", Incumbent.decode,
-     cand("kind=candidate;run=r1;candidate=1;duels=3"), "layout.dim[0].label",
-     "expected 'incumbent'"),
-    ("inc-negative-duels", Incumbent.decode,
-     cand("kind=incumbent;run=r1;candidate=1;duels=-1"), "duels", "non-negative"),
-    ("ep-missing-return", EpisodeResult.decode, ep(episode_return=None),
-     "episode_return", "missing"),
+    (
+        "inc-wrong-kind",
+        Incumbent.decode,
+        cand("kind=candidate;run=r1;candidate=1;duels=3"),
+        "layout.dim[0].label",
+        "expected 'incumbent'",
+    ),
+    (
+        "inc-negative-duels",
+        Incumbent.decode,
+        cand("kind=incumbent;run=r1;candidate=1;duels=-1"),
+        "duels",
+        "non-negative",
+    ),
+    (
+        "ep-missing-return",
+        EpisodeResult.decode,
+        ep(episode_return=None),
+        "episode_return",
+        "missing",
+    ),
     ("ep-nan-return", EpisodeResult.decode, ep(episode_return="nan"), "episode_return", "finite"),
-    ("ep-inf-return", EpisodeResult.decode, ep(episode_return="-inf"), "episode_return",
-     "finite"),
-    ("ep-text-return", EpisodeResult.decode, ep(episode_return="fast"), "episode_return",
-     "not a number"),
+    ("ep-inf-return", EpisodeResult.decode, ep(episode_return="-inf"), "episode_return", "finite"),
+    (
+        "ep-text-return",
+        EpisodeResult.decode,
+        ep(episode_return="fast"),
+        "episode_return",
+        "not a number",
+    ),
     ("ep-bad-status", EpisodeResult.decode, ep(status="great"), "status", "not 'ok' or 'failed'"),
-    ("ep-failed-no-error", EpisodeResult.decode,
-     kv_status("localpbo/episode_result",
-               {"run_id": "r1", "candidate_id": "3", "status": "failed"}, 2),
-     "error", "missing"),
-    ("ep-failed-level-ok", EpisodeResult.decode,
-     kv_status("localpbo/episode_result",
-               {"run_id": "r1", "candidate_id": "3", "status": "failed", "error": "x"}, 0),
-     "level", "expected 2"),
+    (
+        "ep-failed-no-error",
+        EpisodeResult.decode,
+        kv_status(
+            "localpbo/episode_result", {"run_id": "r1", "candidate_id": "3", "status": "failed"}, 2
+        ),
+        "error",
+        "missing",
+    ),
+    (
+        "ep-failed-level-ok",
+        EpisodeResult.decode,
+        kv_status(
+            "localpbo/episode_result",
+            {"run_id": "r1", "candidate_id": "3", "status": "failed", "error": "x"},
+            0,
+        ),
+        "level",
+        "expected 2",
+    ),
     ("ep-unknown-key", EpisodeResult.decode, ep(extra="1"), "extra", "unexpected key"),
-    ("ep-dup-key", EpisodeResult.decode,
-     kv_status("localpbo/episode_result", [*EP.items(), ("run_id", "r1")]), "run_id",
-     "more than once"),
-    ("ep-negative-id", EpisodeResult.decode, ep(candidate_id="-1"), "candidate_id",
-     "non-negative"),
-    ("ep-wrong-run", lambda m: EpisodeResult.decode(m, expected_run_id="r9"), ep(),
-     "run_id", "wrong run"),
-    ("ep-wrong-name", EpisodeResult.decode, kv_status("localpbo/duel_request", EP), "name",
-     "expected 'localpbo/episode_result'"),
-    ("ep-too-many-values", EpisodeResult.decode,
-     kv_status("localpbo/episode_result", [(f"k{i}", "v") for i in range(65)]), "values",
-     "cap 64"),
+    (
+        "ep-dup-key",
+        EpisodeResult.decode,
+        kv_status("localpbo/episode_result", [*EP.items(), ("run_id", "r1")]),
+        "run_id",
+        "more than once",
+    ),
+    ("ep-negative-id", EpisodeResult.decode, ep(candidate_id="-1"), "candidate_id", "non-negative"),
+    (
+        "ep-wrong-run",
+        lambda m: EpisodeResult.decode(m, expected_run_id="r9"),
+        ep(),
+        "run_id",
+        "wrong run",
+    ),
+    (
+        "ep-wrong-name",
+        EpisodeResult.decode,
+        kv_status("localpbo/duel_request", EP),
+        "name",
+        "expected 'localpbo/episode_result'",
+    ),
+    (
+        "ep-too-many-values",
+        EpisodeResult.decode,
+        kv_status("localpbo/episode_result", [(f"k{i}", "v") for i in range(65)]),
+        "values",
+        "cap 64",
+    ),
     ("ep-long-value", EpisodeResult.decode, ep(status="x" * 5000), "status", "longer than"),
-    ("ep-wrong-type", EpisodeResult.decode, DiagnosticArray(), "message",
-     "expected diagnostic_msgs/msg/DiagnosticStatus"),
+    (
+        "ep-wrong-type",
+        EpisodeResult.decode,
+        DiagnosticArray(),
+        "message",
+        "expected diagnostic_msgs/msg/DiagnosticStatus",
+    ),
     ("req-self-duel", DuelRequest.decode, dreq(second_id="1"), "second_id", "self-duel"),
     ("req-missing", DuelRequest.decode, dreq(first_id=None), "first_id", "missing"),
     ("req-hex-id", DuelRequest.decode, dreq(duel_id="0x1"), "duel_id", "integer id"),
     ("req-space-id", DuelRequest.decode, dreq(duel_id=" 1"), "duel_id", "integer id"),
-    ("req-wrong-run", lambda m: DuelRequest.decode(m, expected_run_id="zz"), dreq(),
-     "run_id", "wrong run"),
-    ("out-winner-not-in-duel", DuelOutcome.decode, dout(winner_id="5"), "winner_id",
-     "not the duel's ids"),
-    ("out-winner-is-loser", DuelOutcome.decode, dout(loser_id="1"), "winner_id",
-     "not the duel's ids"),
+    (
+        "req-wrong-run",
+        lambda m: DuelRequest.decode(m, expected_run_id="zz"),
+        dreq(),
+        "run_id",
+        "wrong run",
+    ),
+    (
+        "out-winner-not-in-duel",
+        DuelOutcome.decode,
+        dout(winner_id="5"),
+        "winner_id",
+        "not the duel's ids",
+    ),
+    (
+        "out-winner-is-loser",
+        DuelOutcome.decode,
+        dout(loser_id="1"),
+        "winner_id",
+        "not the duel's ids",
+    ),
     ("out-decisive-no-loser", DuelOutcome.decode, dout(loser_id=None), "loser_id", "missing"),
-    ("out-indifferent-with-winner", DuelOutcome.decode, dout(kind="indifferent"), "winner_id",
-     "must be absent"),
-    ("out-failed-no-reason", DuelOutcome.decode,
-     dout(2, kind="failed", winner_id=None, loser_id=None), "reason", "missing"),
-    ("out-failed-empty-reason", DuelOutcome.decode,
-     dout(2, kind="failed", winner_id=None, loser_id=None, reason=""), "reason", "empty"),
+    (
+        "out-indifferent-with-winner",
+        DuelOutcome.decode,
+        dout(kind="indifferent"),
+        "winner_id",
+        "must be absent",
+    ),
+    (
+        "out-failed-no-reason",
+        DuelOutcome.decode,
+        dout(2, kind="failed", winner_id=None, loser_id=None),
+        "reason",
+        "missing",
+    ),
+    (
+        "out-failed-empty-reason",
+        DuelOutcome.decode,
+        dout(2, kind="failed", winner_id=None, loser_id=None, reason=""),
+        "reason",
+        "empty",
+    ),
     ("out-unknown-kind", DuelOutcome.decode, dout(kind="tie"), "kind", "not decisive"),
-    ("out-wrong-run", lambda m: DuelOutcome.decode(m, expected_run_id="r0"), dout(),
-     "run_id", "wrong run"),
+    (
+        "out-wrong-run",
+        lambda m: DuelOutcome.decode(m, expected_run_id="r0"),
+        dout(),
+        "run_id",
+        "wrong run",
+    ),
     ("cfg-not-json", RunConfig.decode, String(data="{not json"), "data", "not JSON"),
-    ("cfg-nan", RunConfig.decode,
-     String(data=GOOD_CONFIG.to_json().replace('"seed": 3', '"seed": NaN')), "data",
-     "NaN"),
-    ("cfg-dup-key", RunConfig.decode,
-     String(data=GOOD_CONFIG.to_json()[:-1] + ', "seed": 4}'), "data", "duplicate JSON key"),
+    (
+        "cfg-nan",
+        RunConfig.decode,
+        String(data=GOOD_CONFIG.to_json().replace('"seed": 3', '"seed": NaN')),
+        "data",
+        "NaN",
+    ),
+    (
+        "cfg-dup-key",
+        RunConfig.decode,
+        String(data=GOOD_CONFIG.to_json()[:-1] + ', "seed": 4}'),
+        "data",
+        "duplicate JSON key",
+    ),
     ("cfg-array", RunConfig.decode, String(data="[1, 2]"), "data", "JSON object"),
     ("cfg-missing", RunConfig.decode, config_json(budget=None), "budget", "missing"),
     ("cfg-extra", RunConfig.decode, config_json(colour="red"), "colour", "unexpected key"),
     ("cfg-schema", RunConfig.decode, config_json(schema="other/v9"), "schema", "expected"),
     ("cfg-dim-mismatch", RunConfig.decode, config_json(dim=3), "lower", "expected 3"),
-    ("cfg-empty-box", RunConfig.decode, config_json(upper=[0.0, 1.0]), "upper[0]",
-     "must exceed"),
+    ("cfg-empty-box", RunConfig.decode, config_json(upper=[0.0, 1.0]), "upper[0]", "must exceed"),
     ("cfg-negative-seed", RunConfig.decode, config_json(seed=-1), "seed", "non-negative"),
     ("cfg-bool-dim", RunConfig.decode, config_json(dim=True), "dim", "integer"),
     ("cfg-float-budget", RunConfig.decode, config_json(budget=10.5), "budget", "integer"),
-    ("cfg-string-bound", RunConfig.decode, config_json(lower=["0", "0"]), "lower[0]",
-     "number"),
+    ("cfg-string-bound", RunConfig.decode, config_json(lower=["0", "0"]), "lower[0]", "number"),
     ("cfg-options-list", RunConfig.decode, config_json(options=[1]), "options", "object"),
-    ("cfg-wrong-run", lambda m: RunConfig.decode(m, expected_run_id="q"), GOOD_CONFIG.encode(),
-     "run_id", "wrong run"),
+    (
+        "cfg-wrong-run",
+        lambda m: RunConfig.decode(m, expected_run_id="q"),
+        GOOD_CONFIG.encode(),
+        "run_id",
+        "wrong run",
+    ),
     ("cfg-huge", RunConfig.decode, String(data=" " * (2**20 + 1)), "data", "longer than"),
     ("st-two-entries", Status.decode, status_msg(ST, 2), "status", "exactly 1"),
     ("st-missing-state", Status.decode, status_msg(ST[:2]), "state", "missing"),
-    ("st-negative-counter", Status.decode, status_msg([*ST, ("count.dropped", "-1")]),
-     "count.dropped", "non-negative"),
-    ("st-unknown-key", Status.decode, status_msg([*ST, ("colour", "red")]), "colour",
-     "unexpected key"),
-    ("st-bad-node", Status.decode, status_msg([("run_id", "r1"), ("node", "Opt!")]), "node",
-     "not a name"),
-    ("st-wrong-run", lambda m: Status.decode(m, expected_run_id="r2"), status_msg(ST),
-     "run_id", "wrong run"),
+    (
+        "st-negative-counter",
+        Status.decode,
+        status_msg([*ST, ("count.dropped", "-1")]),
+        "count.dropped",
+        "non-negative",
+    ),
+    (
+        "st-unknown-key",
+        Status.decode,
+        status_msg([*ST, ("colour", "red")]),
+        "colour",
+        "unexpected key",
+    ),
+    (
+        "st-bad-node",
+        Status.decode,
+        status_msg([("run_id", "r1"), ("node", "Opt!")]),
+        "node",
+        "not a name",
+    ),
+    (
+        "st-wrong-run",
+        lambda m: Status.decode(m, expected_run_id="r2"),
+        status_msg(ST),
+        "run_id",
+        "wrong run",
+    ),
 ]
 
 
@@ -331,12 +559,12 @@ def test_rejection_survives_cdr() -> None:
 
 def test_good_messages_built_by_hand_decode() -> None:
     """The hand-built fixtures above are valid when unmodified (the rejections are specific)."""
-    assert CandidateMsg.decode(cand(), expected_run_id="r1", expected_dim=2,
-                               lower=(0, 0), upper=(1, 1)) == CandidateMsg("r1", 3, (0.1, 0.2))
+    assert CandidateMsg.decode(
+        cand(), expected_run_id="r1", expected_dim=2, lower=(0, 0), upper=(1, 1)
+    ) == CandidateMsg("r1", 3, (0.1, 0.2))
     assert EpisodeResult.decode(ep()) == EpisodeResult.ok("r1", 3, 1.5)
     assert DuelRequest.decode(dreq()) == DuelRequest("r1", 0, 1, 2)
-    assert DuelOutcome.decode(dout()) == DuelOutcome(
-        "r1", 0, 1, 2, OutcomeKind.DECISIVE, 1, 2)
+    assert DuelOutcome.decode(dout()) == DuelOutcome("r1", 0, 1, 2, OutcomeKind.DECISIVE, 1, 2)
     assert RunConfig.decode(config_json()) == GOOD_CONFIG
     assert Status.decode(status_msg(ST)) == Status("r1", "optimizer", "running")
 
@@ -367,11 +595,33 @@ def test_decoders_never_raise_on_garbage() -> None:
     """Randomised hostile messages: every decoder returns a value or a DecodeError."""
     rng = np.random.default_rng(1234)
     alphabet = list("kind=candidateincumbentrun;01-9.xyz \x00é")
-    decoders = [CandidateMsg.decode, Incumbent.decode, EpisodeResult.decode,
-                DuelRequest.decode, DuelOutcome.decode, RunConfig.decode, Status.decode]
-    keys = ["run_id", "candidate_id", "status", "episode_return", "error", "duel_id",
-            "first_id", "second_id", "kind", "winner_id", "loser_id", "reason", "node",
-            "state", "count.x", "info.y"]
+    decoders = [
+        CandidateMsg.decode,
+        Incumbent.decode,
+        EpisodeResult.decode,
+        DuelRequest.decode,
+        DuelOutcome.decode,
+        RunConfig.decode,
+        Status.decode,
+    ]
+    keys = [
+        "run_id",
+        "candidate_id",
+        "status",
+        "episode_return",
+        "error",
+        "duel_id",
+        "first_id",
+        "second_id",
+        "kind",
+        "winner_id",
+        "loser_id",
+        "reason",
+        "node",
+        "state",
+        "count.x",
+        "info.y",
+    ]
 
     def text() -> str:
         return "".join(rng.choice(alphabet, size=int(rng.integers(0, 12))))
@@ -379,14 +629,23 @@ def test_decoders_never_raise_on_garbage() -> None:
     for _ in range(300):
         which = int(rng.integers(0, 4))
         if which == 0:
-            msg: Any = cand(text(), data=rng.standard_normal(int(rng.integers(0, 4))),
-                            size=int(rng.integers(0, 5)))
+            msg: Any = cand(
+                text(),
+                data=rng.standard_normal(int(rng.integers(0, 4))),
+                size=int(rng.integers(0, 5)),
+            )
         elif which == 1:
-            names = ["localpbo/episode_result", "localpbo/duel_request",
-                     "localpbo/duel_outcome", text()]
-            msg = kv_status(str(rng.choice(names)),
-                            [(str(rng.choice(keys)), text()) for _ in range(rng.integers(0, 9))],
-                            int(rng.integers(0, 4)))
+            names = [
+                "localpbo/episode_result",
+                "localpbo/duel_request",
+                "localpbo/duel_outcome",
+                text(),
+            ]
+            msg = kv_status(
+                str(rng.choice(names)),
+                [(str(rng.choice(keys)), text()) for _ in range(rng.integers(0, 9))],
+                int(rng.integers(0, 4)),
+            )
         elif which == 2:
             msg = String(data=text())
         else:
@@ -394,5 +653,11 @@ def test_decoders_never_raise_on_garbage() -> None:
         for decode in decoders:
             out = decode(msg)
             assert isinstance(out, DecodeError) or type(out).__name__ in {
-                "CandidateMsg", "Incumbent", "EpisodeResult", "DuelRequest", "DuelOutcome",
-                "RunConfig", "Status"}
+                "CandidateMsg",
+                "Incumbent",
+                "EpisodeResult",
+                "DuelRequest",
+                "DuelOutcome",
+                "RunConfig",
+                "Status",
+            }

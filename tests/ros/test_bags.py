@@ -52,8 +52,9 @@ def test_cli_replay_plays(monkeypatch, capsys) -> None:
     # keep the process-wide DDS settings the CLI would choose out of later tests
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(PROFILE_FILE))
-    code = cli_main(["replay", str(BAG), "--rate", "50", "--topics", RUN_CONFIG.name,
-                     DUEL_OUTCOME.name])
+    code = cli_main(
+        ["replay", str(BAG), "--rate", "50", "--topics", RUN_CONFIG.name, DUEL_OUTCOME.name]
+    )
     assert code == 0
     assert f"published 40 messages from {BAG}" in capsys.readouterr().out
     assert cli_main(["replay", str(BAG), "--topics", "/nope"]) == 2

@@ -24,9 +24,23 @@ def install(tmp_path_factory) -> Path:
     assert colcon is not None, "colcon is not installed in this environment"
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     proc = subprocess.run(
-        [colcon, "--log-base", str(base / "log"), "build", "--base-paths", "src",
-         "--build-base", str(base / "build"), "--install-base", str(base / "install")],
-        cwd=REPO / "ros_ws", env=env, capture_output=True, text=True, timeout=300,
+        [
+            colcon,
+            "--log-base",
+            str(base / "log"),
+            "build",
+            "--base-paths",
+            "src",
+            "--build-base",
+            str(base / "build"),
+            "--install-base",
+            str(base / "install"),
+        ],
+        cwd=REPO / "ros_ws",
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return base / "install"
@@ -35,8 +49,12 @@ def install(tmp_path_factory) -> Path:
 def sourced(install: Path, command: str) -> list[str]:
     """Run ``command`` in bash after sourcing the workspace's setup.bash (what users do)."""
     venv = Path(sys.prefix)
-    return ["bash", "-c", f"source {install}/setup.bash && "
-            f"export AMENT_PREFIX_PATH=$AMENT_PREFIX_PATH:{venv} && exec {command}"]
+    return [
+        "bash",
+        "-c",
+        f"source {install}/setup.bash && "
+        f"export AMENT_PREFIX_PATH=$AMENT_PREFIX_PATH:{venv} && exec {command}",
+    ]
 
 
 def test_layout(install: Path) -> None:
@@ -49,9 +67,14 @@ def test_layout(install: Path) -> None:
         assert path.is_file() and os.access(path, os.X_OK)
     # what `ros2 run localpbo_ros <exe>` resolves: the ament index, then lib/<pkg>/<exe>
     out = subprocess.run(
-        sourced(install, f"{sys.executable} -c \"from ament_index_python.packages import "
-                "get_package_prefix; print(get_package_prefix('localpbo_ros'))\""),
-        capture_output=True, text=True, timeout=60,
+        sourced(
+            install,
+            f'{sys.executable} -c "from ament_index_python.packages import '
+            "get_package_prefix; print(get_package_prefix('localpbo_ros'))\"",
+        ),
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert out.returncode == 0, out.stderr
     assert Path(out.stdout.strip().splitlines()[-1]) == pkg
@@ -60,8 +83,13 @@ def test_layout(install: Path) -> None:
 def test_bad_parameter_refused_by_executable(install: Path) -> None:
     exe = install / "localpbo_ros/lib/localpbo_ros/optimizer_node"
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
-    out = subprocess.run(sourced(install, f"{exe} --ros-args -p budget:=-4"), env=env,
-                         capture_output=True, text=True, timeout=60)
+    out = subprocess.run(
+        sourced(install, f"{exe} --ros-args -p budget:=-4"),
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert out.returncode == 2
     assert "invalid parameter 'budget'" in out.stderr
 
@@ -74,8 +102,13 @@ def test_executable_starts_and_stops_cleanly(install: Path, exe: str, tmp_path: 
     }.get(exe, "-p run_id:=smoke")
     path = install / "localpbo_ros/lib/localpbo_ros" / exe
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
-    proc = subprocess.Popen(sourced(install, f"{path} --ros-args {args}"), env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(
+        sourced(install, f"{path} --ros-args {args}"),
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         lines = []
         end = time.monotonic() + 60

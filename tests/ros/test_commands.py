@@ -21,8 +21,12 @@ def test_default_run_is_turpbo_on_swimmer() -> None:
     settings["algorithm_options"] = {}
     settings["task_options"] = {}
     config = config_from_settings(settings)
-    assert (config.algorithm, config.task, config.budget, config.dim) == ("turpbo", "swimmer",
-                                                                          162, 16)
+    assert (config.algorithm, config.task, config.budget, config.dim) == (
+        "turpbo",
+        "swimmer",
+        162,
+        16,
+    )
     assert args.func.__name__ == "cmd_run"
     assert parse(["replay", "x.mcap", "--verify"]).func.__name__ == "cmd_replay"
     assert parse(["bag-info", "x.mcap"]).func.__name__ == "cmd_bag_info"

@@ -14,8 +14,9 @@ from .conftest import SMALL_TASK
 
 
 def config(**kw):
-    base = dict(run_id="t1", algorithm="sobol", task="swimmer", seed=5, budget=12,
-                task_options=SMALL_TASK)
+    base = dict(
+        run_id="t1", algorithm="sobol", task="swimmer", seed=5, budget=12, task_options=SMALL_TASK
+    )
     base.update(kw)
     return make_run_config(**base)
 
@@ -59,12 +60,22 @@ def test_offer_refusals_leave_state_unchanged() -> None:
     req = work.requests[0]
     before = drv.optimizer.history
     bad = [
-        (DuelOutcome.decisive(DuelRequest("other", req.duel_id, req.first_id, req.second_id),
-                              req.first_id), "wrong_run"),
-        (DuelOutcome.decisive(DuelRequest("t1", 7, req.first_id, req.second_id), req.first_id),
-         "unknown_duel"),
-        (DuelOutcome.decisive(DuelRequest("t1", req.duel_id, req.second_id, req.first_id),
-                              req.first_id), "mismatched_duel"),
+        (
+            DuelOutcome.decisive(
+                DuelRequest("other", req.duel_id, req.first_id, req.second_id), req.first_id
+            ),
+            "wrong_run",
+        ),
+        (
+            DuelOutcome.decisive(DuelRequest("t1", 7, req.first_id, req.second_id), req.first_id),
+            "unknown_duel",
+        ),
+        (
+            DuelOutcome.decisive(
+                DuelRequest("t1", req.duel_id, req.second_id, req.first_id), req.first_id
+            ),
+            "mismatched_duel",
+        ),
         (DuelOutcome.indifferent(req), "unsupported_kind"),
         (DuelOutcome.failed(req, "episode failed"), "failed"),
     ]
@@ -82,10 +93,14 @@ def test_offer_refusals_leave_state_unchanged() -> None:
 
 @pytest.mark.parametrize(
     ("kw", "field"),
-    [({"algorithm": "nope"}, "algorithm"), ({"task": "nope"}, "problem"),
-     ({"budget": 1}, "budget"), ({"noise_fraction": -1.0}, "noise_fraction"),
-     ({"failure_policy": "ignore"}, "failure_policy"),
-     ({"task_options": {"episode_steps": 50}}, "noise_fraction")],
+    [
+        ({"algorithm": "nope"}, "algorithm"),
+        ({"task": "nope"}, "problem"),
+        ({"budget": 1}, "budget"),
+        ({"noise_fraction": -1.0}, "noise_fraction"),
+        ({"failure_policy": "ignore"}, "failure_policy"),
+        ({"task_options": {"episode_steps": 50}}, "noise_fraction"),
+    ],
 )
 def test_make_run_config_names_bad_setting(kw, field) -> None:
     with pytest.raises(ValueError, match=field):

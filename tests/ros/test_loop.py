@@ -30,8 +30,14 @@ from localpbo_msgs_py.topics import (
 
 from .conftest import SMALL_TASK
 
-SETTINGS = {"algorithm": "sobol", "task": "swimmer", "budget": 30, "seed": 11,
-            "run_id": "loop", "task_options": json.dumps(SMALL_TASK)}
+SETTINGS = {
+    "algorithm": "sobol",
+    "task": "swimmer",
+    "budget": 30,
+    "seed": 11,
+    "run_id": "loop",
+    "task_options": json.dumps(SMALL_TASK),
+}
 
 
 def test_full_loop_recorded_and_verified(tmp_path) -> None:
@@ -44,7 +50,8 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
     assert set(per_topic) <= {t.name for t in ALL_TOPICS}
     assert per_topic[RUN_CONFIG.name] >= 1 and per_topic[CANDIDATE.name] >= 30
     decisive = [
-        DuelOutcome.decode(_to_rclpy(m.ros_msg)) for m in msgs
+        DuelOutcome.decode(_to_rclpy(m.ros_msg))
+        for m in msgs
         if m.channel.topic == DUEL_OUTCOME.name
     ]
     ids = Counter(o.duel_id for o in decisive if o.kind is OutcomeKind.DECISIVE)
@@ -52,15 +59,20 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
     # the summary's episode returns are the recorded ones of the best and the first candidate
     returns = {
         r.candidate_id: r.episode_return
-        for r in (EpisodeResult.decode(_to_rclpy(m.ros_msg)) for m in msgs
-                  if m.channel.topic == EPISODE_RESULT.name)
+        for r in (
+            EpisodeResult.decode(_to_rclpy(m.ros_msg))
+            for m in msgs
+            if m.channel.topic == EPISODE_RESULT.name
+        )
     }
     assert summary.best_return == returns[summary.best_id]
     assert summary.first_return == returns[0]
     assert summary.recommended_return == returns[summary.recommended_id]
     text = summary.format()
-    assert f"recommended candidate (highest posterior mean utility given all duels): id " \
+    assert (
+        f"recommended candidate (highest posterior mean utility given all duels): id "
         f"{summary.recommended_id}," in text
+    )
     assert f"recommended {returns[summary.recommended_id]:.1f}" in text
     cfg = json.loads(next(m.ros_msg.data for m in msgs if m.channel.topic == RUN_CONFIG.name))
     assert cfg["run_id"] == "loop" and cfg["seed"] == 11 and cfg["budget"] == 30
@@ -82,8 +94,12 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
     did = 0
     while not ref.done:
         ask = ref.ask()
-        ref.tell([Outcome(outs[did + i].winner_id, outs[did + i].loser_id)
-                  for i in range(len(ask.duels))])
+        ref.tell(
+            [
+                Outcome(outs[did + i].winner_id, outs[did + i].loser_id)
+                for i in range(len(ask.duels))
+            ]
+        )
         did += len(ask.duels)
     assert summary.best_id == ref.incumbent.id
 
@@ -92,9 +108,13 @@ def _to_rclpy(msg):
     """mcap_ros2's dynamic message -> the rclpy DiagnosticStatus the codec expects."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-    return DiagnosticStatus(level=bytes([msg.level]), name=msg.name, message=msg.message,
-                            hardware_id=msg.hardware_id,
-                            values=[KeyValue(key=kv.key, value=kv.value) for kv in msg.values])
+    return DiagnosticStatus(
+        level=bytes([msg.level]),
+        name=msg.name,
+        message=msg.message,
+        hardware_id=msg.hardware_id,
+        values=[KeyValue(key=kv.key, value=kv.value) for kv in msg.values],
+    )
 
 
 def test_verify_detects_tampering(tmp_path) -> None:
@@ -115,8 +135,12 @@ def test_verify_detects_tampering(tmp_path) -> None:
 
 
 def test_late_joining_simulator(ros) -> None:
-    opt = ros.add(OptimizerNode(context=ros.ctx, overrides={
-        **SETTINGS, "budget": 6, "republish_period_s": 0.2, "min_subscribers": 0}))
+    opt = ros.add(
+        OptimizerNode(
+            context=ros.ctx,
+            overrides={**SETTINGS, "budget": 6, "republish_period_s": 0.2, "min_subscribers": 0},
+        )
+    )
     ros.add(OracleNode(context=ros.ctx))
     ros.spin_for(0.5)  # work published with nobody to evaluate it
     assert opt.driver.n_duels == 0 and opt.driver.step_open
@@ -127,8 +151,12 @@ def test_late_joining_simulator(ros) -> None:
 
 
 def test_late_joining_oracle_gets_earlier_results(ros) -> None:
-    opt = ros.add(OptimizerNode(context=ros.ctx, overrides={
-        **SETTINGS, "budget": 6, "republish_period_s": 0.2, "min_subscribers": 0}))
+    opt = ros.add(
+        OptimizerNode(
+            context=ros.ctx,
+            overrides={**SETTINGS, "budget": 6, "republish_period_s": 0.2, "min_subscribers": 0},
+        )
+    )
     sim = ros.add(SimNode(context=ros.ctx))
     assert ros.spin_until(lambda: sim.counters["episodes"] == 2, 10)  # evaluated, unheard
     ros.spin_for(0.3)
@@ -150,14 +178,16 @@ def test_play_republishes_with_timing_and_qos(ros, tmp_path) -> None:
 
     player = ros.add(Node("player", context=ros.ctx, start_parameter_services=False))
     start = time.monotonic()
-    sent = play(bag, player, ros.executor, rate=4.0, loops=2,
-                topics=[DUEL_OUTCOME.name, RUN_CONFIG.name])
+    sent = play(
+        bag, player, ros.executor, rate=4.0, loops=2, topics=[DUEL_OUTCOME.name, RUN_CONFIG.name]
+    )
     elapsed = time.monotonic() - start
     ros.spin_for(0.3)
     assert sent == 2 * (5 + 1) and len(got) == 2 * 5
     # original timing divided by the rate: each pass lasts the recorded span / 4
-    stamps = [r.log_time_ns for r in read_messages(bag, topics=[DUEL_OUTCOME.name,
-                                                                 RUN_CONFIG.name])]
+    stamps = [
+        r.log_time_ns for r in read_messages(bag, topics=[DUEL_OUTCOME.name, RUN_CONFIG.name])
+    ]
     span = (max(stamps) - min(stamps)) / 1e9 / 4.0
     assert elapsed >= 2 * span * 0.9
     assert recorder.recorded >= 6
@@ -170,7 +200,10 @@ def test_playback_qos_from_offered_profiles() -> None:
     for spec in ALL_TOPICS:
         qos = qos_from_metadata(offered_qos_yaml([spec.qos]))
         assert (qos.reliability, qos.durability, qos.depth) == (
-            spec.qos.reliability, spec.qos.durability, spec.qos.depth)
+            spec.qos.reliability,
+            spec.qos.durability,
+            spec.qos.depth,
+        )
     default = qos_from_metadata("")
     assert default.durability.name == "VOLATILE" and default.depth == 10
 
@@ -194,8 +227,12 @@ def _flaky_evaluator(fail_times: int):
 
 def test_failing_simulator_retry_then_complete(tmp_path) -> None:
     evaluate, failures = _flaky_evaluator(2)
-    summary = run_suite({**SETTINGS, "budget": 8, "max_retries": 2}, tmp_path / "r.mcap",
-                        evaluator=evaluate, timeout_s=60)
+    summary = run_suite(
+        {**SETTINGS, "budget": 8, "max_retries": 2},
+        tmp_path / "r.mcap",
+        evaluator=evaluate,
+        timeout_s=60,
+    )
     assert summary.state == "done" and summary.duels == 7 and failures[3] == 2
     # the failed duel outcomes are in the bag, and the run still verifies
     kinds = Counter(o.kind for o in load_run(tmp_path / "r.mcap").outcomes)
@@ -208,7 +245,11 @@ def test_failing_simulator_retry_then_complete(tmp_path) -> None:
 
 def test_failing_simulator_stop_policy(tmp_path) -> None:
     evaluate, _ = _flaky_evaluator(1)
-    summary = run_suite({**SETTINGS, "budget": 8, "failure_policy": "stop"},
-                        tmp_path / "s.mcap", evaluator=evaluate, timeout_s=60)
+    summary = run_suite(
+        {**SETTINGS, "budget": 8, "failure_policy": "stop"},
+        tmp_path / "s.mcap",
+        evaluator=evaluate,
+        timeout_s=60,
+    )
     assert summary.state == "failed" and "physics blew up" in summary.error
     assert summary.duels == 2  # duels 0 and 1 done; duel 2 (candidate 3) failed

@@ -29,9 +29,16 @@ def tx_packets() -> int:
 
 def test_four_processes_complete_a_run(tmp_path: Path) -> None:
     sent_before = tx_packets()
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "FASTRTPS_DEFAULT_PROFILES_FILE",
-                        "LOCALPBO_DDS_OPEN")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k
+        not in (
+            "ROS_AUTOMATIC_DISCOVERY_RANGE",
+            "FASTRTPS_DEFAULT_PROFILES_FILE",
+            "LOCALPBO_DDS_OPEN",
+        )
+    }
     env["ROS_DOMAIN_ID"] = "57"
     bag = tmp_path / "mp.mcap"
 
@@ -39,8 +46,9 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
         cmd = [sys.executable, "-m", f"localpbo_ros.{module}"]
         if ros_args:
             cmd += ["--ros-args", *ros_args]
-        return subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.PIPE, text=True)
+        return subprocess.Popen(
+            cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
 
     helpers = [start("recorder", "-p", f"path:={bag}"), start("sim_node"), start("oracle_node")]
     try:
@@ -57,11 +65,26 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
                 break
             time.sleep(0.1)
         opt = subprocess.run(
-            [sys.executable, "-m", "localpbo_ros.optimizer_node", "--ros-args",
-             "-p", "algorithm:=sobol", "-p", "budget:=8", "-p", "run_id:=mp",
-             "-p", "min_subscribers:=2",
-             "-p", "task_options:='{\"episode_steps\": 50, \"value_range\": 50.0}'"],
-            env=env, capture_output=True, text=True, timeout=120,
+            [
+                sys.executable,
+                "-m",
+                "localpbo_ros.optimizer_node",
+                "--ros-args",
+                "-p",
+                "algorithm:=sobol",
+                "-p",
+                "budget:=8",
+                "-p",
+                "run_id:=mp",
+                "-p",
+                "min_subscribers:=2",
+                "-p",
+                'task_options:=\'{"episode_steps": 50, "value_range": 50.0}\'',
+            ],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
         )
         assert opt.returncode == 0, opt.stderr
     finally:

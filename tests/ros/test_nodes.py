@@ -34,13 +34,26 @@ from localpbo_msgs_py.topics import (
 
 from .conftest import SMALL_TASK
 
-OPT = {"algorithm": "sobol", "task": "swimmer", "budget": 8, "seed": 4, "run_id": "t1",
-       "task_options": '{"episode_steps": 50, "value_range": 50.0}'}
+OPT = {
+    "algorithm": "sobol",
+    "task": "swimmer",
+    "budget": 8,
+    "seed": 4,
+    "run_id": "t1",
+    "task_options": '{"episode_steps": 50, "value_range": 50.0}',
+}
 
 
 def cfg():
-    return make_run_config(run_id="t1", algorithm="sobol", task="swimmer", seed=4, budget=8,
-                           task_options=SMALL_TASK, optimizer_options={"initial_design": 2})
+    return make_run_config(
+        run_id="t1",
+        algorithm="sobol",
+        task="swimmer",
+        seed=4,
+        budget=8,
+        task_options=SMALL_TASK,
+        optimizer_options={"initial_design": 2},
+    )
 
 
 def raw_candidate(label: str, data) -> Float64MultiArray:
@@ -102,8 +115,9 @@ def test_sim_node_evaluates_by_id_and_drops_bad_input(ros) -> None:
     ]
     for msg in hostile:
         ros.publish(CANDIDATE, msg)
-    assert ros.spin_until(lambda: sum(v for k, v in sim.counters.items()
-                                      if k.startswith("dropped_")) == 7, 10)
+    assert ros.spin_until(
+        lambda: sum(v for k, v in sim.counters.items() if k.startswith("dropped_")) == 7, 10
+    )
     assert sim.counters["dropped_wrong_run"] == 1
     assert sim.counters["dropped_conflicting_candidate"] == 1
     ros.spin_for(0.2)
@@ -137,11 +151,11 @@ def test_oracle_node_matches_by_id_and_uses_reference_oracle(ros) -> None:
     ros.publish(DUEL_REQUEST, DuelRequest("t1", 0, 2, 3).encode())
     ros.publish(EPISODE_RESULT, EpisodeResult.ok("t1", 0, 9.0).encode())
     ros.publish(EPISODE_RESULT, EpisodeResult.ok("other", 0, 9.0).encode())
-    bad = DiagnosticStatus(name="localpbo/duel_request", values=[KeyValue(key="run_id",
-                                                                          value="t1")])
+    bad = DiagnosticStatus(
+        name="localpbo/duel_request", values=[KeyValue(key="run_id", value="t1")]
+    )
     ros.publish(DUEL_REQUEST, bad)
-    assert ros.spin_until(lambda: len(outs) >= 4 and oracle.counters["dropped_malformed"] == 1,
-                          10)
+    assert ros.spin_until(lambda: len(outs) >= 4 and oracle.counters["dropped_malformed"] == 1, 10)
     assert DuelOutcome.decode(outs[3]) == decoded[0]
     assert oracle.counters["dropped_conflicting_request"] == 1
     assert oracle.counters["dropped_conflicting_result"] == 1
@@ -180,10 +194,10 @@ def _scripted_peer(ros, answer):
         waiting.append(DuelRequest.decode(msg))
         flush()
 
-    ros.probe.create_subscription(CANDIDATE.msg_type, CANDIDATE.name, on_candidate,
-                                  CANDIDATE.qos)
-    ros.probe.create_subscription(DUEL_REQUEST.msg_type, DUEL_REQUEST.name, on_request,
-                                  DUEL_REQUEST.qos)
+    ros.probe.create_subscription(CANDIDATE.msg_type, CANDIDATE.name, on_candidate, CANDIDATE.qos)
+    ros.probe.create_subscription(
+        DUEL_REQUEST.msg_type, DUEL_REQUEST.name, on_request, DUEL_REQUEST.qos
+    )
     return cands
 
 
@@ -210,9 +224,13 @@ def test_optimizer_node_against_scripted_oracle_and_hostile_outcomes(ros) -> Non
     good = judge(r, cands)
     for msg in hostile_messages(r, good.winner_id, opt.driver.accepted):
         ros.publish(DUEL_OUTCOME, msg)
-    assert ros.spin_until(lambda: sum(v for k, v in opt.counters.items()
-                                      if k.startswith("dropped_")) == 6
-                          and opt.counters["outcomes_duplicate"] == 1, 10)
+    assert ros.spin_until(
+        lambda: (
+            sum(v for k, v in opt.counters.items() if k.startswith("dropped_")) == 6
+            and opt.counters["outcomes_duplicate"] == 1
+        ),
+        10,
+    )
     assert opt.driver.optimizer.history == history  # state unchanged by bad input
     assert opt.driver.pending_requests() == (r,)
     ros.publish(DUEL_OUTCOME, good.encode())
@@ -256,22 +274,24 @@ def _last_inc(msgs):
 def hostile_messages(r: DuelRequest, winner: int, accepted: list[DuelOutcome]) -> list[object]:
     """Wrong run, malformed (2), unknown duel, mismatched ids, repeated earlier duel (with
     another winner), and an exact duplicate of an accepted outcome."""
-    wrong_run = DuelOutcome.decisive(DuelRequest("other", r.duel_id, r.first_id, r.second_id),
-                                     winner).encode()
+    wrong_run = DuelOutcome.decisive(
+        DuelRequest("other", r.duel_id, r.first_id, r.second_id), winner
+    ).encode()
     no_kind = DuelOutcome.decisive(r, winner).encode()
     no_kind.values = [kv for kv in no_kind.values if kv.key != "kind"]
     nan_id = DuelOutcome.decisive(r, winner).encode()
     for kv in nan_id.values:
         if kv.key == "winner_id":
             kv.value = "nan"
-    unknown = DuelOutcome.decisive(DuelRequest("t1", 999, r.first_id, r.second_id),
-                                   winner).encode()
+    unknown = DuelOutcome.decisive(DuelRequest("t1", 999, r.first_id, r.second_id), winner).encode()
     other = (r.first_id + 1) if (r.first_id + 1) != r.second_id else r.first_id + 2
-    mismatched = DuelOutcome.decisive(DuelRequest("t1", r.duel_id, other, r.second_id),
-                                      other).encode()
+    mismatched = DuelOutcome.decisive(
+        DuelRequest("t1", r.duel_id, other, r.second_id), other
+    ).encode()
     first = accepted[0]  # duel 0, answered: a different answer is a repeated outcome
-    repeated = DuelOutcome.decisive(DuelRequest("t1", 0, first.first_id, first.second_id),
-                                    first.loser_id).encode()
+    repeated = DuelOutcome.decisive(
+        DuelRequest("t1", 0, first.first_id, first.second_id), first.loser_id
+    ).encode()
     duplicate = first.encode()  # an exact copy is benign (counted, not dropped)
     return [wrong_run, no_kind, nan_id, unknown, mismatched, repeated, duplicate]
 
@@ -296,11 +316,13 @@ def test_optimizer_failure_policies(ros) -> None:
 def test_optimizer_stop_policy(ros) -> None:
 
     def failing(r, cands):
-        return DuelOutcome.failed(r, "simulator raised") if r.duel_id == 1 else (
-            DuelOutcome.decisive(r, r.first_id))
+        return (
+            DuelOutcome.failed(r, "simulator raised")
+            if r.duel_id == 1
+            else (DuelOutcome.decisive(r, r.first_id))
+        )
 
-    stop = ros.add(OptimizerNode(context=ros.ctx, overrides={
-        **OPT, "failure_policy": "stop"}))
+    stop = ros.add(OptimizerNode(context=ros.ctx, overrides={**OPT, "failure_policy": "stop"}))
     _scripted_peer(ros, failing)
     assert ros.spin_until(lambda: stop.finished, 20)
     assert stop.state == "failed" and "simulator raised" in stop.error
@@ -308,13 +330,14 @@ def test_optimizer_stop_policy(ros) -> None:
 
 
 def test_optimizer_silent_peer_times_out(ros) -> None:
-    opt = ros.add(OptimizerNode(context=ros.ctx, overrides={
-        **OPT, "duel_timeout_s": 0.3, "max_retries": 1}))
+    opt = ros.add(
+        OptimizerNode(context=ros.ctx, overrides={**OPT, "duel_timeout_s": 0.3, "max_retries": 1})
+    )
     requests = []
-    ros.probe.create_subscription(DUEL_REQUEST.msg_type, DUEL_REQUEST.name, requests.append,
-                                  DUEL_REQUEST.qos)
-    ros.probe.create_subscription(CANDIDATE.msg_type, CANDIDATE.name, lambda m: None,
-                                  CANDIDATE.qos)
+    ros.probe.create_subscription(
+        DUEL_REQUEST.msg_type, DUEL_REQUEST.name, requests.append, DUEL_REQUEST.qos
+    )
+    ros.probe.create_subscription(CANDIDATE.msg_type, CANDIDATE.name, lambda m: None, CANDIDATE.qos)
     assert ros.spin_until(lambda: opt.finished, 10)
     assert opt.state == "failed" and "timeout" in opt.error
     assert opt.counters["retries"] == 1 and len(requests) >= 2
@@ -323,20 +346,23 @@ def test_optimizer_silent_peer_times_out(ros) -> None:
 
 def test_followers_switch_to_a_new_run_or_stick_to_their_run_id(ros) -> None:
     config_a = cfg()
-    config_b = make_run_config(run_id="t2", algorithm="sobol", task="swimmer", seed=9, budget=8,
-                               task_options=SMALL_TASK)
+    config_b = make_run_config(
+        run_id="t2", algorithm="sobol", task="swimmer", seed=9, budget=8, task_options=SMALL_TASK
+    )
     free = ros.add(SimNode(context=ros.ctx, evaluator=lambda c, cid, th: float(c.seed)))
     pinned = ros.add(OracleNode(context=ros.ctx, overrides={"run_id": "t1"}))
     results = ros.collect(EPISODE_RESULT)
     ros.publish(RUN_CONFIG, config_a.encode())
     assert ros.spin_until(lambda: free.run_id == "t1" and pinned.run_id == "t1", 5)
-    conflicting = make_run_config(run_id="t1", algorithm="sobol", task="swimmer", seed=5,
-                                  budget=8, task_options=SMALL_TASK)
+    conflicting = make_run_config(
+        run_id="t1", algorithm="sobol", task="swimmer", seed=5, budget=8, task_options=SMALL_TASK
+    )
     ros.publish(RUN_CONFIG, conflicting.encode())
     assert ros.spin_until(lambda: free.counters["dropped_conflicting_config"] == 1, 5)
     ros.publish(RUN_CONFIG, config_b.encode())
-    assert ros.spin_until(lambda: free.run_id == "t2" and pinned.counters[
-        "dropped_wrong_run"] == 1, 5)
+    assert ros.spin_until(
+        lambda: free.run_id == "t2" and pinned.counters["dropped_wrong_run"] == 1, 5
+    )
     assert pinned.run_id == "t1"
     theta = tuple(config_b.lower)
     ros.publish(CANDIDATE, CandidateMsg("t2", 0, theta).encode())

@@ -36,8 +36,15 @@ def test_optimizer_refuses_bad_parameter(ros, overrides, name) -> None:
 
 
 def test_descriptors_have_ranges(ros) -> None:
-    node = ros.add(OptimizerNode(context=ros.ctx, overrides={
-        "algorithm": "sobol", "task_options": '{"episode_steps": 50, "value_range": 50.0}'}))
+    node = ros.add(
+        OptimizerNode(
+            context=ros.ctx,
+            overrides={
+                "algorithm": "sobol",
+                "task_options": '{"episode_steps": 50, "value_range": 50.0}',
+            },
+        )
+    )
     for p in PARAMS:
         desc = node.describe_parameter(p.name)
         assert desc.read_only and desc.description

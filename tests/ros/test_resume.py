@@ -34,9 +34,27 @@ def decisive_ids(path) -> Counter:
 
 def test_sigkill_then_resume(tmp_path) -> None:
     bag = tmp_path / "killed.mcap"
-    cmd = [sys.executable, "-m", "localpbo_ros.commands", "run", "--algorithm", "sobol",
-           "--task", "swimmer", "--budget", str(BUDGET), "--seed", "7", "--run-id", "kill",
-           "--task-options", json.dumps(TASK), "--bag", str(bag), "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "localpbo_ros.commands",
+        "run",
+        "--algorithm",
+        "sobol",
+        "--task",
+        "swimmer",
+        "--budget",
+        str(BUDGET),
+        "--seed",
+        "7",
+        "--run-id",
+        "kill",
+        "--task-options",
+        json.dumps(TASK),
+        "--bag",
+        str(bag),
+        "--no-progress",
+    ]
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
@@ -66,14 +84,26 @@ def test_sigkill_then_resume(tmp_path) -> None:
 
     # same outcomes as an uninterrupted run with the same settings (ids and winners)
     whole = tmp_path / "whole.mcap"
-    summary = run_suite({"algorithm": "sobol", "task": "swimmer", "budget": BUDGET, "seed": 7,
-                         "run_id": "kill", "task_options": json.dumps(TASK)}, whole,
-                        timeout_s=120)
+    summary = run_suite(
+        {
+            "algorithm": "sobol",
+            "task": "swimmer",
+            "budget": BUDGET,
+            "seed": 7,
+            "run_id": "kill",
+            "task_options": json.dumps(TASK),
+        },
+        whole,
+        timeout_s=120,
+    )
     assert summary.state == "done"
 
     def winners(path):
-        return sorted((o.duel_id, o.winner_id) for o in load_run(path).outcomes
-                      if o.kind is OutcomeKind.DECISIVE)
+        return sorted(
+            (o.duel_id, o.winner_id)
+            for o in load_run(path).outcomes
+            if o.kind is OutcomeKind.DECISIVE
+        )
 
     assert winners(resumed) == winners(whole)
 

@@ -44,8 +44,9 @@ def load_run(path: str | os.PathLike[str]) -> RecordedRun:
         if config is None:
             config = decoded
         elif decoded.to_json() != config.to_json():
-            raise ValueError(f"{path}: holds run configs of two runs "
-                             f"({config.run_id!r}, {decoded.run_id!r})")
+            raise ValueError(
+                f"{path}: holds run configs of two runs ({config.run_id!r}, {decoded.run_id!r})"
+            )
     if config is None:
         raise ValueError(f"{path}: no valid {RUN_CONFIG.name} message; not a localpbo run bag")
     candidates: dict[int, CandidateMsg] = {}
@@ -54,8 +55,9 @@ def load_run(path: str | os.PathLike[str]) -> RecordedRun:
     wanted = [CANDIDATE.name, DUEL_REQUEST.name, DUEL_OUTCOME.name]
     for rec in read_messages(path, topics=wanted):
         if rec.topic == CANDIDATE.name:
-            cand = CandidateMsg.decode(rec.message, expected_run_id=config.run_id,
-                                       expected_dim=config.dim)
+            cand = CandidateMsg.decode(
+                rec.message, expected_run_id=config.run_id, expected_dim=config.dim
+            )
             if isinstance(cand, CandidateMsg):
                 candidates.setdefault(cand.candidate_id, cand)
         elif rec.topic == DUEL_REQUEST.name:
@@ -74,7 +76,8 @@ def copy_into(path: str | os.PathLike[str], writer: BagWriter) -> int:
     writer.add_suite_topics(ALL_TOPICS)
     n = 0
     for rec in read_messages(path):
-        writer.write(rec.topic, rec.message, log_time_ns=rec.log_time_ns,
-                     publish_time_ns=rec.publish_time_ns)
+        writer.write(
+            rec.topic, rec.message, log_time_ns=rec.log_time_ns, publish_time_ns=rec.publish_time_ns
+        )
         n += 1
     return n

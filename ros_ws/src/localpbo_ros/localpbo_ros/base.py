@@ -69,7 +69,13 @@ class SuiteNode(Node):
     def publish_status(self, level: int = 0, message: str = "") -> None:
         """Publish state and counters on ``/localpbo/status``."""
         status = Status(
-            self.status_run_id, self.get_name(), self.state, level, message[:4000],
-            dict(self.counters), {}, self.get_clock().now().nanoseconds,
+            self.status_run_id,
+            self.get_name(),
+            self.state,
+            level,
+            message[:4000],
+            dict(self.counters),
+            {},
+            self.get_clock().now().nanoseconds,
         )
         self._status_pub.publish(status.encode())

@@ -66,10 +66,20 @@ def in_process(task: str, algorithm: str, budget: int, seed: int) -> tuple[float
 
 def over_ros(task: str, algorithm: str, budget: int, seed: int, bag: Path | None) -> Any:
     """The run summary of the ROS loop (recorded iff ``bag``)."""
-    settings = {"task": task, "algorithm": algorithm, "budget": budget, "seed": seed,
-                "run_id": f"bench-{task}", "task_options": json.dumps({})}
-    return run_suite(settings, bag if bag is not None else Path("unused.mcap"),
-                     record=bag is not None, timeout_s=600)
+    settings = {
+        "task": task,
+        "algorithm": algorithm,
+        "budget": budget,
+        "seed": seed,
+        "run_id": f"bench-{task}",
+        "task_options": json.dumps({}),
+    }
+    return run_suite(
+        settings,
+        bag if bag is not None else Path("unused.mcap"),
+        record=bag is not None,
+        timeout_s=600,
+    )
 
 
 def write_cost_us(bag: Path, repeat: int = 5) -> float:
@@ -88,12 +98,22 @@ def write_cost_us(bag: Path, repeat: int = 5) -> float:
     return elapsed / (repeat * len(msgs)) * 1e6
 
 
-def _row(task: str, clock: str, duels: int, t_in: float, t_bare: float, t_rec: float,
-         recorded: float, write_us: float) -> str:
+def _row(
+    task: str,
+    clock: str,
+    duels: int,
+    t_in: float,
+    t_bare: float,
+    t_rec: float,
+    recorded: float,
+    write_us: float,
+) -> str:
     ms_in, ms_bare, ms_rec = (t / duels * 1e3 for t in (t_in, t_bare, t_rec))
     per_msg = (t_rec - t_bare) / recorded * 1e6
-    return (f"{task:<10}{clock:<6}{duels:>6}{ms_in:>12.2f}{ms_bare:>10.2f}{ms_rec:>10.2f}"
-            f"{ms_rec - ms_in:>11.2f}{recorded / duels:>10.1f}{per_msg:>10.1f}{write_us:>10.1f}")
+    return (
+        f"{task:<10}{clock:<6}{duels:>6}{ms_in:>12.2f}{ms_bare:>10.2f}{ms_rec:>10.2f}"
+        f"{ms_rec - ms_in:>11.2f}{recorded / duels:>10.1f}{per_msg:>10.1f}{write_us:>10.1f}"
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -105,37 +125,61 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tasks", nargs="+", default=["hartmann6", "swimmer"])
     parser.add_argument("--repeat", type=int, default=3, help="runs per setting (median shown)")
     args = parser.parse_args(argv)
-    print(f"algorithm={args.algorithm} budget={args.budget} seed={args.seed} "
-          f"(median of {args.repeat} interleaved runs)")
-    print(f"{'task':<10}{'clock':<6}{'duels':>6}{'in-process':>12}{'ROS':>10}{'ROS+rec':>10}"
-          f"{'overhead':>11}{'msgs/duel':>10}{'rec/msg':>10}{'write/msg':>10}")
-    print(f"{'':<22}{'ms/duel':>12}{'ms/duel':>10}{'ms/duel':>10}{'ms/duel':>11}{'':>10}"
-          f"{'µs':>10}{'µs':>10}")
+    print(
+        f"algorithm={args.algorithm} budget={args.budget} seed={args.seed} "
+        f"(median of {args.repeat} interleaved runs)"
+    )
+    print(
+        f"{'task':<10}{'clock':<6}{'duels':>6}{'in-process':>12}{'ROS':>10}{'ROS+rec':>10}"
+        f"{'overhead':>11}{'msgs/duel':>10}{'rec/msg':>10}{'write/msg':>10}"
+    )
+    print(
+        f"{'':<22}{'ms/duel':>12}{'ms/duel':>10}{'ms/duel':>10}{'ms/duel':>11}{'':>10}"
+        f"{'µs':>10}{'µs':>10}"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for task in args.tasks:
             bag = Path(tmp) / f"{task}.mcap"
-            runs: dict[str, list[float]] = {k: [] for k in (
-                "in_wall", "in_cpu", "bare_wall", "bare_cpu", "rec_wall", "rec_cpu", "n")}
+            runs: dict[str, list[float]] = {
+                k: []
+                for k in ("in_wall", "in_cpu", "bare_wall", "bare_cpu", "rec_wall", "rec_cpu", "n")
+            }
             duels = 0
             for _ in range(args.repeat):  # interleaved, so load changes hit all three alike
                 wall, cpu, duels = in_process(task, args.algorithm, args.budget, args.seed)
                 bare = over_ros(task, args.algorithm, args.budget, args.seed, None)
                 rec = over_ros(task, args.algorithm, args.budget, args.seed, bag)
                 assert bare.duels == rec.duels == duels, (bare.duels, rec.duels, duels)
-                for key, value in (("in_wall", wall), ("in_cpu", cpu),
-                                   ("bare_wall", bare.loop_seconds),
-                                   ("bare_cpu", bare.loop_cpu_seconds),
-                                   ("rec_wall", rec.loop_seconds),
-                                   ("rec_cpu", rec.loop_cpu_seconds), ("n", rec.recorded)):
+                for key, value in (
+                    ("in_wall", wall),
+                    ("in_cpu", cpu),
+                    ("bare_wall", bare.loop_seconds),
+                    ("bare_cpu", bare.loop_cpu_seconds),
+                    ("rec_wall", rec.loop_seconds),
+                    ("rec_cpu", rec.loop_cpu_seconds),
+                    ("n", rec.recorded),
+                ):
                     runs[key].append(value)
             med = {k: float(np.median(v)) for k, v in runs.items()}
             write_us = write_cost_us(bag)
             for clock in ("wall", "cpu"):
-                print(_row(task, clock, duels, med[f"in_{clock}"], med[f"bare_{clock}"],
-                           med[f"rec_{clock}"], med["n"], write_us))
-    print("wall: elapsed time; cpu: process CPU time (all threads, insensitive to other load).\n"
-          "overhead = ROS+rec − in-process per duel (target < 5 ms); rec/msg = (ROS+rec − ROS) "
-          "/ messages recorded; write/msg = BagWriter.write_serialized alone.")
+                print(
+                    _row(
+                        task,
+                        clock,
+                        duels,
+                        med[f"in_{clock}"],
+                        med[f"bare_{clock}"],
+                        med[f"rec_{clock}"],
+                        med["n"],
+                        write_us,
+                    )
+                )
+    print(
+        "wall: elapsed time; cpu: process CPU time (all threads, insensitive to other load).\n"
+        "overhead = ROS+rec − in-process per duel (target < 5 ms); rec/msg = (ROS+rec − ROS) "
+        "/ messages recorded; write/msg = BagWriter.write_serialized alone."
+    )
 
 
 if __name__ == "__main__":

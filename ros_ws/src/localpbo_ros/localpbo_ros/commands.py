@@ -45,34 +45,55 @@ def add_subcommands(subparsers: Any) -> None:
     )
     run.add_argument("--task", default=DEFAULTS["task"], help="task, e.g. swimmer, hopper")
     run.add_argument("--algorithm", default=DEFAULTS["algorithm"], help="e.g. turpbo, sobol")
-    run.add_argument("--budget", type=int, default=DEFAULTS["budget"],
-                     help="evaluations incl. the initial design (0 = algorithm default)")
+    run.add_argument(
+        "--budget",
+        type=int,
+        default=DEFAULTS["budget"],
+        help="evaluations incl. the initial design (0 = algorithm default)",
+    )
     run.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="run seed")
     run.add_argument("--initial-design", type=int, default=2, help="initial random points")
-    run.add_argument("--noise", type=float, default=0.1,
-                     help="oracle noise std as a fraction of the task's value range")
+    run.add_argument(
+        "--noise",
+        type=float,
+        default=0.1,
+        help="oracle noise std as a fraction of the task's value range",
+    )
     run.add_argument("--algorithm-options", type=_json_object, default="{}", metavar="JSON")
-    run.add_argument("--task-options", type=_json_object, default="{}", metavar="JSON",
-                     help="e.g. '{\"episode_steps\": 200, \"value_range\": 100}'")
+    run.add_argument(
+        "--task-options",
+        type=_json_object,
+        default="{}",
+        metavar="JSON",
+        help='e.g. \'{"episode_steps": 200, "value_range": 100}\'',
+    )
     run.add_argument("--failure-policy", choices=("retry", "stop"), default="retry")
     run.add_argument("--out", default="runs", help="directory for the bag")
     run.add_argument("--bag", default=None, help="bag path (default OUT/RUN_ID.mcap)")
     run.add_argument("--run-id", default=None, help="run id (default run-<UTC time>)")
-    run.add_argument("--resume", default=None, metavar="BAG",
-                     help="continue the run recorded in BAG (its config rules); the new bag "
-                     "holds the old history plus the rest, each duel once")
+    run.add_argument(
+        "--resume",
+        default=None,
+        metavar="BAG",
+        help="continue the run recorded in BAG (its config rules); the new bag "
+        "holds the old history plus the rest, each duel once",
+    )
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.set_defaults(func=cmd_run)
 
     replay = subparsers.add_parser(
-        "replay", help="re-publish a bag with its timing, or --verify it offline",
+        "replay",
+        help="re-publish a bag with its timing, or --verify it offline",
         description="Publish the recorded topics with their original timing and QoS (like "
         "ros2 bag play), or with --verify rebuild the optimizer from the recorded config and "
         "outcomes and check it proposes exactly the recorded candidates.",
     )
     replay.add_argument("bag", help=".mcap file")
-    replay.add_argument("--verify", action="store_true", help="offline check; prints OK or "
-                        "the first mismatch (exit 1)")
+    replay.add_argument(
+        "--verify",
+        action="store_true",
+        help="offline check; prints OK or the first mismatch (exit 1)",
+    )
     replay.add_argument("--rate", type=float, default=1.0, help="playback speed factor")
     replay.add_argument("--loop", action="store_true", help="play again and again (Ctrl-C)")
     replay.add_argument("--topics", nargs="+", default=None, help="only these topics")
@@ -87,10 +108,16 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
     """Optimizer-node parameters from ``run`` arguments."""
     run_id = args.run_id or time.strftime("run-%Y%m%dT%H%M%SZ", time.gmtime())
     return {
-        "run_id": run_id, "algorithm": args.algorithm, "task": args.task,
-        "budget": args.budget, "seed": args.seed, "initial_design": args.initial_design,
-        "noise_fraction": float(args.noise), "algorithm_options": args.algorithm_options,
-        "task_options": args.task_options, "failure_policy": args.failure_policy,
+        "run_id": run_id,
+        "algorithm": args.algorithm,
+        "task": args.task,
+        "budget": args.budget,
+        "seed": args.seed,
+        "initial_design": args.initial_design,
+        "noise_fraction": float(args.noise),
+        "algorithm_options": args.algorithm_options,
+        "task_options": args.task_options,
+        "failure_policy": args.failure_policy,
     }
 
 
@@ -122,6 +149,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 bar.total = budget
                 bar.n = used
                 bar.refresh()
+
     try:
         summary = run_suite(settings, bag, resume=args.resume, on_progress=progress)
     except ParameterError as exc:
@@ -161,8 +189,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     try:
-        sent = play(args.bag, node, executor, rate=args.rate, loops=0 if args.loop else 1,
-                    topics=args.topics)
+        sent = play(
+            args.bag,
+            node,
+            executor,
+            rate=args.rate,
+            loops=0 if args.loop else 1,
+            topics=args.topics,
+        )
         print(f"published {sent} messages from {args.bag}")
         return EXIT_OK
     except (OSError, ValueError) as exc:

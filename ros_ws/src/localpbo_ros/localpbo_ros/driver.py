@@ -100,8 +100,15 @@ def make_run_config(
         "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
     }
     return RunConfig(
-        run_id, algorithm.lower(), task, problem.dim, lower, upper, int(seed),
-        optimizer.budget, options,
+        run_id,
+        algorithm.lower(),
+        task,
+        problem.dim,
+        lower,
+        upper,
+        int(seed),
+        optimizer.budget,
+        options,
     )
 
 
@@ -116,7 +123,10 @@ def section(config: RunConfig, name: str) -> dict[str, Any]:
 def build_optimizer(config: RunConfig) -> PreferenceOptimizer:
     """A fresh optimizer exactly as the run config describes it."""
     return make_optimizer(
-        config.algorithm, config.dim, seed=config.seed, budget=config.budget,
+        config.algorithm,
+        config.dim,
+        seed=config.seed,
+        budget=config.budget,
         **section(config, "optimizer"),
     )
 
@@ -247,7 +257,8 @@ class Driver:
             return Verdict(False, "unknown_duel", f"duel {outcome.duel_id} was never asked")
         if (outcome.first_id, outcome.second_id) != (duel.first, duel.second):
             return Verdict(
-                False, "mismatched_duel",
+                False,
+                "mismatched_duel",
                 f"duel {outcome.duel_id} is {duel.first} vs {duel.second}, message says "
                 f"{outcome.first_id} vs {outcome.second_id}",
             )

@@ -14,8 +14,9 @@ LINGER_S = 1.0
 """Seconds a finished optimizer keeps spinning so the last messages reach their readers."""
 
 
-def run_node(factory: Callable[..., Any], argv: list[str] | None,
-             *, stop_when_finished: bool) -> int:
+def run_node(
+    factory: Callable[..., Any], argv: list[str] | None, *, stop_when_finished: bool
+) -> int:
     """Create one node from ``factory`` and spin it until SIGINT (or until it finishes).
 
     Returns the exit code: 0 after a clean stop, 1 when the node's run failed, 2 when a
@@ -29,9 +30,12 @@ def run_node(factory: Callable[..., Any], argv: list[str] | None,
     try:
         rclpy.init(args=args)
     except Exception as exc:  # rcl refuses malformed --ros-args (e.g. unquoted JSON)
-        print(f"{factory.__name__}: cannot parse ROS arguments: {exc}\n"
-              "hint: quote JSON parameters as YAML strings, e.g. "
-              "-p \"task_options:='{\\\"episode_steps\\\": 200}'\"", file=sys.stderr)
+        print(
+            f"{factory.__name__}: cannot parse ROS arguments: {exc}\n"
+            "hint: quote JSON parameters as YAML strings, e.g. "
+            '-p "task_options:=\'{\\"episode_steps\\": 200}\'"',
+            file=sys.stderr,
+        )
         return 2
     node = None
     code = 0

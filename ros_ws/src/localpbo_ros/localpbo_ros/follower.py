@@ -22,8 +22,13 @@ from localpbo_ros.params import Param
 
 FOLLOWER_PARAMS = [
     Param("run_id", "", "Only serve this run; empty = the first run config received."),
-    Param("max_pending", 1000, "Messages kept while waiting for the run config, and duels "
-          "kept while waiting for episode results.", int_range=(1, 1_000_000)),
+    Param(
+        "max_pending",
+        1000,
+        "Messages kept while waiting for the run config, and duels "
+        "kept while waiting for episode results.",
+        int_range=(1, 1_000_000),
+    ),
 ]
 
 
@@ -39,8 +44,9 @@ class FollowerNode(SuiteNode, abc.ABC):
         overrides: dict[str, Any] | None = None,
         cli_args: list[str] | None = None,
     ) -> None:
-        super().__init__(name, FOLLOWER_PARAMS + params, context=context, overrides=overrides,
-                         cli_args=cli_args)
+        super().__init__(
+            name, FOLLOWER_PARAMS + params, context=context, overrides=overrides, cli_args=cli_args
+        )
         self.config: RunConfig | None = None
         self._early: list[tuple[Callable[[Any], None], Any]] = []
         self.subscribe(RUN_CONFIG, self._on_config)
@@ -55,17 +61,18 @@ class FollowerNode(SuiteNode, abc.ABC):
         wanted = self.settings["run_id"] or None
         decoded = RunConfig.decode(msg, expected_run_id=wanted)
         if isinstance(decoded, DecodeError):
-            self.drop("wrong_run" if "wrong run" in decoded.problem else "malformed",
-                      str(decoded))
+            self.drop("wrong_run" if "wrong run" in decoded.problem else "malformed", str(decoded))
             return
         if self.config is not None:
             if decoded.run_id == self.config.run_id:
                 if decoded.to_json() != self.config.to_json():
-                    self.drop("conflicting_config",
-                              f"run {decoded.run_id!r} already has another config")
+                    self.drop(
+                        "conflicting_config", f"run {decoded.run_id!r} already has another config"
+                    )
                 return
-            self.get_logger().info(f"switching from run {self.config.run_id!r} to "
-                                   f"{decoded.run_id!r}")
+            self.get_logger().info(
+                f"switching from run {self.config.run_id!r} to {decoded.run_id!r}"
+            )
             self.config = None
             self.reset()
         try:

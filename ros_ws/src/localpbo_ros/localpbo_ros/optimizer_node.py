@@ -38,37 +38,75 @@ from localpbo_ros.params import INT_MAX, Param, ParameterError
 PARAMS = [
     Param("run_id", "localpbo", "Run id stamped on every message ([A-Za-z0-9][A-Za-z0-9_.-]*)."),
     Param("algorithm", "turpbo", "Preference optimizer.", choices=tuple(available_optimizers())),
-    Param("algorithm_options", "{}", "Algorithm options as a JSON object, e.g. "
-          '{"batch_size": 2}.', json_object=True),
+    Param(
+        "algorithm_options",
+        "{}",
+        'Algorithm options as a JSON object, e.g. {"batch_size": 2}.',
+        json_object=True,
+    ),
     Param("task", "swimmer", "Task (problem) to tune.", choices=tuple(available_problems())),
-    Param("task_options", "{}", "Task options as a JSON object, e.g. {\"episode_steps\": 200}.",
-          json_object=True),
-    Param("budget", 0, "Evaluations incl. the initial design; 0 = algorithm default.",
-          int_range=(0, 100_000)),
-    Param("initial_design", 2, "Shared random initial points (paper App. D.1).",
-          int_range=(2, 100_000)),
-    Param("seed", 0, "Run seed (optimizer, episode seeds, oracle noise).",
-          int_range=(0, INT_MAX)),
-    Param("noise_fraction", 0.1, "Oracle noise std as a fraction of the task's value range.",
-          float_range=(0.0, 10.0)),
-    Param("failure_policy", "retry", "What a failed or timed-out duel does.",
-          choices=FAILURE_POLICIES),
+    Param(
+        "task_options",
+        "{}",
+        'Task options as a JSON object, e.g. {"episode_steps": 200}.',
+        json_object=True,
+    ),
+    Param(
+        "budget",
+        0,
+        "Evaluations incl. the initial design; 0 = algorithm default.",
+        int_range=(0, 100_000),
+    ),
+    Param(
+        "initial_design",
+        2,
+        "Shared random initial points (paper App. D.1).",
+        int_range=(2, 100_000),
+    ),
+    Param("seed", 0, "Run seed (optimizer, episode seeds, oracle noise).", int_range=(0, INT_MAX)),
+    Param(
+        "noise_fraction",
+        0.1,
+        "Oracle noise std as a fraction of the task's value range.",
+        float_range=(0.0, 10.0),
+    ),
+    Param(
+        "failure_policy", "retry", "What a failed or timed-out duel does.", choices=FAILURE_POLICIES
+    ),
     Param("max_retries", 2, "Retries per duel under failure_policy=retry.", int_range=(0, 100)),
-    Param("duel_timeout_s", 120.0, "Seconds without progress before pending duels time out.",
-          float_range=(0.05, 86_400.0)),
-    Param("republish_period_s", 2.0, "Re-publish pending work this often (late joiners).",
-          float_range=(0.01, 3600.0)),
-    Param("min_subscribers", 1, "Start once candidate and duel_request topics have this many "
-          "subscribers.", int_range=(0, 1000)),
+    Param(
+        "duel_timeout_s",
+        120.0,
+        "Seconds without progress before pending duels time out.",
+        float_range=(0.05, 86_400.0),
+    ),
+    Param(
+        "republish_period_s",
+        2.0,
+        "Re-publish pending work this often (late joiners).",
+        float_range=(0.01, 3600.0),
+    ),
+    Param(
+        "min_subscribers",
+        1,
+        "Start once candidate and duel_request topics have this many subscribers.",
+        int_range=(0, 1000),
+    ),
 ]
 
 TICK_S = 0.05
 """Period of the start / timeout / re-publish check."""
 
 _FIELD_TO_PARAM = {
-    "algorithm": "algorithm", "problem": "task", "task": "task", "budget": "budget",
-    "initial_design": "initial_design", "seed": "seed", "noise_fraction": "noise_fraction",
-    "value_range": "task_options", "run_id": "run_id",
+    "algorithm": "algorithm",
+    "problem": "task",
+    "task": "task",
+    "budget": "budget",
+    "initial_design": "initial_design",
+    "seed": "seed",
+    "noise_fraction": "noise_fraction",
+    "value_range": "task_options",
+    "run_id": "run_id",
 }
 
 
@@ -80,9 +118,15 @@ def config_from_settings(s: dict[str, Any]) -> RunConfig:
     opt["initial_design"] = s["initial_design"]
     try:
         return make_run_config(
-            run_id=s["run_id"], algorithm=s["algorithm"], task=s["task"], seed=s["seed"],
-            budget=s["budget"] or None, optimizer_options=opt, task_options=s["task_options"],
-            noise_fraction=s["noise_fraction"], failure_policy=s["failure_policy"],
+            run_id=s["run_id"],
+            algorithm=s["algorithm"],
+            task=s["task"],
+            seed=s["seed"],
+            budget=s["budget"] or None,
+            optimizer_options=opt,
+            task_options=s["task_options"],
+            noise_fraction=s["noise_fraction"],
+            failure_policy=s["failure_policy"],
             max_retries=s["max_retries"],
         )
     except (ValueError, TypeError) as exc:
@@ -102,10 +146,14 @@ def settings_from_config(config: RunConfig) -> dict[str, Any]:
     initial = int(opt.pop("initial_design", 2))
     failure = config.options.get("failure", {})
     return {
-        "run_id": config.run_id, "algorithm": config.algorithm,
-        "algorithm_options": json.dumps(opt), "task": config.task,
-        "task_options": json.dumps(config.options.get("task", {})), "budget": config.budget,
-        "initial_design": initial, "seed": config.seed,
+        "run_id": config.run_id,
+        "algorithm": config.algorithm,
+        "algorithm_options": json.dumps(opt),
+        "task": config.task,
+        "task_options": json.dumps(config.options.get("task", {})),
+        "budget": config.budget,
+        "initial_design": initial,
+        "seed": config.seed,
         "noise_fraction": float(config.options.get("oracle", {}).get("noise_fraction", 0.1)),
         "failure_policy": failure.get("policy", "retry"),
         "max_retries": int(failure.get("max_retries", 2)),
@@ -131,8 +179,9 @@ class OptimizerNode(SuiteNode):
         cli_args: list[str] | None = None,
         resume_outcomes: Sequence[DuelOutcome] = (),
     ) -> None:
-        super().__init__("optimizer", PARAMS, context=context, overrides=overrides,
-                         cli_args=cli_args)
+        super().__init__(
+            "optimizer", PARAMS, context=context, overrides=overrides, cli_args=cli_args
+        )
         self.config = config_from_settings(self.settings)
         self.status_run_id = self.config.run_id
         if resume_outcomes:
@@ -168,8 +217,10 @@ class OptimizerNode(SuiteNode):
             return
         if not self._started:
             need = self.settings["min_subscribers"]
-            if (self._pub_candidate.get_subscription_count() >= need
-                    and self._pub_request.get_subscription_count() >= need):
+            if (
+                self._pub_candidate.get_subscription_count() >= need
+                and self._pub_request.get_subscription_count() >= need
+            ):
                 self._start()
             return
         now = self._now()
@@ -179,8 +230,10 @@ class OptimizerNode(SuiteNode):
                 self._failure(req.duel_id, f"timeout: no outcome within {timeout} s")
                 if self.finished:
                     return
-        elif self.driver.step_open and now - self._last_publish >= self.settings[
-                "republish_period_s"]:
+        elif (
+            self.driver.step_open
+            and now - self._last_publish >= self.settings["republish_period_s"]
+        ):
             self._publish_pending()
 
     def _start(self) -> None:
@@ -254,8 +307,9 @@ class OptimizerNode(SuiteNode):
         policy = self.settings["failure_policy"]
         tries = self._attempts.get(duel_id, 0)
         if policy == "stop" or tries >= self.settings["max_retries"]:
-            self._stop(f"duel {duel_id} failed ({reason}); failure_policy={policy}, "
-                       f"retries used {tries}")
+            self._stop(
+                f"duel {duel_id} failed ({reason}); failure_policy={policy}, retries used {tries}"
+            )
             return
         self._attempts[duel_id] = tries + 1
         self.counters["retries"] += 1

@@ -38,8 +38,14 @@ def duel_seed(run_seed: int, duel_id: int) -> int:
     return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
-def judge(problem: Any, noise_fraction: float, run_seed: int, request: DuelRequest,
-          value_first: float, value_second: float) -> DuelOutcome:
+def judge(
+    problem: Any,
+    noise_fraction: float,
+    run_seed: int,
+    request: DuelRequest,
+    value_first: float,
+    value_second: float,
+) -> DuelOutcome:
     """The decisive outcome of ``request`` (eq. pi: first wins iff y_first > y_second)."""
     oracle = PreferenceOracle(problem, noise_fraction, seed=duel_seed(run_seed, request.duel_id))
     first_wins = oracle.compare(value_first, value_second)
@@ -101,12 +107,17 @@ class OracleNode(FollowerNode):
             self.drop(self._reason(res), str(res))
             return
         known = self._results.get(res.candidate_id)
-        if res.status is EpisodeStatus.OK and known is not None and (
-                known.status is EpisodeStatus.OK):
+        if (
+            res.status is EpisodeStatus.OK
+            and known is not None
+            and (known.status is EpisodeStatus.OK)
+        ):
             if known.episode_return != res.episode_return:
-                self.drop("conflicting_result",
-                          f"candidate {res.candidate_id}: {res.episode_return} after "
-                          f"{known.episode_return}")
+                self.drop(
+                    "conflicting_result",
+                    f"candidate {res.candidate_id}: {res.episode_return} after "
+                    f"{known.episode_return}",
+                )
             else:
                 self.counters["results_repeated"] += 1
             return
@@ -147,18 +158,26 @@ class OracleNode(FollowerNode):
             req = self._waiting[duel_id]
             first = self._results.get(req.first_id)
             second = self._results.get(req.second_id)
-            failed = [r for r in (first, second)
-                      if r is not None and r.status is EpisodeStatus.FAILED]
+            failed = [
+                r for r in (first, second) if r is not None and r.status is EpisodeStatus.FAILED
+            ]
             if failed:
-                reason = "; ".join(f"episode of candidate {r.candidate_id} failed: {r.error}"
-                                   for r in failed)[:4000]
+                reason = "; ".join(
+                    f"episode of candidate {r.candidate_id} failed: {r.error}" for r in failed
+                )[:4000]
                 outcome = DuelOutcome.failed(req, reason)
                 consumed.update(r.candidate_id for r in failed)
                 self.counters["duels_failed"] += 1
             elif first is not None and second is not None:
                 assert first.episode_return is not None and second.episode_return is not None
-                outcome = judge(self._problem, self._noise, self.config.seed, req,
-                                first.episode_return, second.episode_return)
+                outcome = judge(
+                    self._problem,
+                    self._noise,
+                    self.config.seed,
+                    req,
+                    first.episode_return,
+                    second.episode_return,
+                )
                 self._answered[duel_id] = outcome
                 self.counters["duels_answered"] += 1
             else:

@@ -74,7 +74,7 @@ class Param:
             except json.JSONDecodeError as exc:
                 raise ParameterError(self.name, f"not JSON: {exc}") from None
             if not isinstance(obj, dict):
-                raise ParameterError(self.name, "must be a JSON object like {\"key\": 1}")
+                raise ParameterError(self.name, 'must be a JSON object like {"key": 1}')
             return obj
         return value
 

@@ -26,8 +26,12 @@ from localpbo_ros.params import Param, ParameterError
 
 PARAMS = [
     Param("path", "localpbo_run.mcap", "Output .mcap file (overwritten)."),
-    Param("flush_interval_s", 0.05, "Close the open chunk and flush at least this often.",
-          float_range=(0.001, 60.0)),
+    Param(
+        "flush_interval_s",
+        0.05,
+        "Close the open chunk and flush at least this often.",
+        float_range=(0.001, 60.0),
+    ),
 ]
 
 RECORD_DEPTH = 1000
@@ -63,8 +67,9 @@ class RecorderNode(SuiteNode):
         writer: BagWriter | None = None,
         topics: Iterable[TopicSpec] = ALL_TOPICS,
     ) -> None:
-        super().__init__("recorder", PARAMS, context=context, overrides=overrides,
-                         cli_args=cli_args)
+        super().__init__(
+            "recorder", PARAMS, context=context, overrides=overrides, cli_args=cli_args
+        )
         self.topics = tuple(topics)
         if writer is None:
             path = Path(self.settings["path"])
@@ -76,7 +81,10 @@ class RecorderNode(SuiteNode):
         self.recorded = 0
         self._subs = [
             self.create_subscription(
-                spec.msg_type, spec.name, self._callback(spec.name), recording_qos(spec),
+                spec.msg_type,
+                spec.name,
+                self._callback(spec.name),
+                recording_qos(spec),
                 raw=True,
                 # no QoS-event handlers: fewer entities in every executor wait (the recorder's
                 # QoS is compatible with the suite's publishers by construction)
@@ -90,13 +98,17 @@ class RecorderNode(SuiteNode):
         def record(data: bytes) -> None:
             self.writer.write_serialized(topic, data)
             self.recorded += 1
+
         return record
 
     def matched(self, topics: Iterable[str]) -> bool:
         """True when every named topic has at least one publisher matched to the recorder."""
         wanted = set(topics)
-        return all(sub.get_publisher_count() > 0 for spec, sub in zip(self.topics, self._subs,
-                   strict=True) if spec.name in wanted)
+        return all(
+            sub.get_publisher_count() > 0
+            for spec, sub in zip(self.topics, self._subs, strict=True)
+            if spec.name in wanted
+        )
 
     def close(self) -> None:
         """Finish the bag (summary and footer)."""

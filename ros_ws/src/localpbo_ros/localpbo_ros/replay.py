@@ -29,10 +29,14 @@ from localpbo_ros.bagtools import load_run
 from localpbo_ros.driver import rebuild
 
 _HISTORY = {"keep_last": HistoryPolicy.KEEP_LAST, "keep_all": HistoryPolicy.KEEP_ALL}
-_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE,
-                "best_effort": ReliabilityPolicy.BEST_EFFORT}
-_DURABILITY = {"volatile": DurabilityPolicy.VOLATILE,
-               "transient_local": DurabilityPolicy.TRANSIENT_LOCAL}
+_RELIABILITY = {
+    "reliable": ReliabilityPolicy.RELIABLE,
+    "best_effort": ReliabilityPolicy.BEST_EFFORT,
+}
+_DURABILITY = {
+    "volatile": DurabilityPolicy.VOLATILE,
+    "transient_local": DurabilityPolicy.TRANSIENT_LOCAL,
+}
 INFINITE_SEC = 9223372036
 
 
@@ -44,8 +48,9 @@ def qos_from_metadata(text: str) -> QoSProfile:
     """
     profiles = parse_offered_qos(text)
     if not profiles:
-        return QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+        return QoSProfile(
+            depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE
+        )
     reliable = all(p.get("reliability") == "reliable" for p in profiles)
     durable = all(p.get("durability") == "transient_local" for p in profiles)
     first = profiles[0]
@@ -127,10 +132,18 @@ class VerifyReport:
     def format(self) -> str:
         """``OK ...`` or ``MISMATCH ...``."""
         if self.ok:
-            extra = (f"; {self.unpublished} proposed candidate(s) were not recorded (run "
-                     "stopped before publishing them)") if self.unpublished else ""
-            return (f"OK: {self.candidates_checked} candidates and {self.duels_checked} duels "
-                    f"reproduced from {self.outcomes_used} recorded outcomes{extra}")
+            extra = (
+                (
+                    f"; {self.unpublished} proposed candidate(s) were not recorded (run "
+                    "stopped before publishing them)"
+                )
+                if self.unpublished
+                else ""
+            )
+            return (
+                f"OK: {self.candidates_checked} candidates and {self.duels_checked} duels "
+                f"reproduced from {self.outcomes_used} recorded outcomes{extra}"
+            )
         return f"MISMATCH: {self.mismatch}"
 
 
@@ -144,13 +157,19 @@ def verify(path: str | os.PathLike[str]) -> VerifyReport:
         rec = run.candidates[cid]
         mine = proposed.get(cid)
         if mine is None:
-            return VerifyReport(False, 0, 0, used, 0,
-                                f"candidate {cid} is recorded but was not proposed")
-        if mine.theta != rec.theta:
-            diff = next(i for i, (a, b) in enumerate(zip(mine.theta, rec.theta, strict=True))
-                        if a != b)
             return VerifyReport(
-                False, 0, 0, used, 0,
+                False, 0, 0, used, 0, f"candidate {cid} is recorded but was not proposed"
+            )
+        if mine.theta != rec.theta:
+            diff = next(
+                i for i, (a, b) in enumerate(zip(mine.theta, rec.theta, strict=True)) if a != b
+            )
+            return VerifyReport(
+                False,
+                0,
+                0,
+                used,
+                0,
                 f"candidate {cid}: θ[{diff}] recorded {rec.theta[diff]!r}, "
                 f"rebuilt {mine.theta[diff]!r}",
             )
@@ -158,10 +177,17 @@ def verify(path: str | os.PathLike[str]) -> VerifyReport:
     for did in sorted(run.requests):
         req = run.requests[did]
         if did >= len(duels) or (duels[did].first, duels[did].second) != (
-                req.first_id, req.second_id):
+            req.first_id,
+            req.second_id,
+        ):
             mine_txt = "none" if did >= len(duels) else f"{duels[did].first} vs {duels[did].second}"
-            return VerifyReport(False, 0, 0, used, 0,
-                                f"duel {did}: recorded {req.first_id} vs {req.second_id}, "
-                                f"rebuilt {mine_txt}")
+            return VerifyReport(
+                False,
+                0,
+                0,
+                used,
+                0,
+                f"duel {did}: recorded {req.first_id} vs {req.second_id}, rebuilt {mine_txt}",
+            )
     unpublished = len(set(proposed) - set(run.candidates))
     return VerifyReport(True, len(run.candidates), len(run.requests), used, unpublished, "")

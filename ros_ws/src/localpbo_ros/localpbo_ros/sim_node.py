@@ -53,8 +53,7 @@ class SimNode(FollowerNode):
         cli_args: list[str] | None = None,
         evaluator: Evaluator | None = None,
     ) -> None:
-        super().__init__("simulator", [], context=context, overrides=overrides,
-                         cli_args=cli_args)
+        super().__init__("simulator", [], context=context, overrides=overrides, cli_args=cli_args)
         self._evaluator = evaluator
         self._problem: Any = None
         self._thetas: dict[int, tuple[float, ...]] = {}
@@ -85,8 +84,11 @@ class SimNode(FollowerNode):
         config = self.config
         assert config is not None
         cand = CandidateMsg.decode(
-            msg, expected_run_id=config.run_id, expected_dim=config.dim,
-            lower=config.lower, upper=config.upper,
+            msg,
+            expected_run_id=config.run_id,
+            expected_dim=config.dim,
+            lower=config.lower,
+            upper=config.upper,
         )
         if isinstance(cand, DecodeError):
             self.drop("wrong_run" if "wrong run" in cand.problem else "malformed", str(cand))

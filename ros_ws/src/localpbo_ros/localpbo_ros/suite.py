@@ -69,8 +69,8 @@ class RunSummary:
         """Human-readable summary."""
         lines = [
             f"run {self.run_id}: {self.state}" + (f" ({self.error})" if self.error else ""),
-            f"duels: {self.duels}" + (f" ({self.resumed_duels} from the resumed bag)"
-                                      if self.resumed_duels else ""),
+            f"duels: {self.duels}"
+            + (f" ({self.resumed_duels} from the resumed bag)" if self.resumed_duels else ""),
             f"evaluations: {self.evaluations}",
             f"time: {self.seconds:.1f} s",
         ]
@@ -181,9 +181,15 @@ def run_suite(
         inc = opt.driver.incumbent()
         rec = opt.driver.recommendation()
         return RunSummary(
-            opt.config.run_id, str(bag) if record else "", opt.state, opt.error,
-            opt.driver.n_duels, opt.resumed_duels, opt.driver.optimizer.evaluations_used,
-            None if inc is None else inc.candidate_id, () if inc is None else inc.theta,
+            opt.config.run_id,
+            str(bag) if record else "",
+            opt.state,
+            opt.error,
+            opt.driver.n_duels,
+            opt.resumed_duels,
+            opt.driver.optimizer.evaluations_used,
+            None if inc is None else inc.candidate_id,
+            () if inc is None else inc.theta,
             time.monotonic() - start,
             max(opt.finished_at - opt.started_at, 0.0),
             opt.cpu_seconds,
