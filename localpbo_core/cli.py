@@ -1,9 +1,14 @@
-"""The ``localpbo`` command: ``localpbo bench`` and ``localpbo demo``.
+"""The ``localpbo`` command: ``bench`` and ``demo`` here; ``run``, ``replay`` and ``bag-info``
+from the ROS node package.
 
-``bench`` runs the in-process loop (:mod:`localpbo_core.loop`) for every (algorithm, seed)
-and writes ``results.csv`` (one row per evaluation, columns ``RESULT_COLUMNS``),
-``summary.csv`` and ``best_seen.png``; ``demo`` is a short real tuning run on the small
-MuJoCo task (Swimmer, 16-D linear policy), TuRPBO against Sobol.
+``bench`` drives one :class:`~localpbo_core.session.Session` per (algorithm, seed) in-process
+(:func:`localpbo_core.loop.run_session`) and writes ``results.csv`` (one row per evaluation,
+columns ``RESULT_COLUMNS``), ``summary.csv``, ``best_seen.png`` and one ``runs/*.json`` per run
+(the candidates, values and answers it exchanged); ``demo`` is a short in-process comparison
+on the small MuJoCo task (Swimmer, 16-D linear policy), TuRPBO against Sobol.
+
+Nothing here imports ROS: the ROS subcommands' parsers are added from
+``localpbo_ros.commands``, whose module imports rclpy only inside the chosen command.
 """
 
 from __future__ import annotations
@@ -12,30 +17,44 @@ import argparse
 import ast
 import csv
 import importlib.util
-import math
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from localpbo_core.loop import RESULT_COLUMNS, EvaluationRecord, run_loop
-from localpbo_core.optimizers.registry import (
-    available_optimizers,
-    make_optimizer,
-    optimizer_options,
+from localpbo_core.loop import RESULT_COLUMNS, EvaluationRecord, RunTrace, run_session
+from localpbo_core.optimizers.registry import available_optimizers, optimizer_options
+from localpbo_core.settings import (
+    DEFAULT_INITIAL_DESIGN,
+    DEFAULT_NOISE_FRACTION,
+    RunSettings,
+    SettingError,
 )
 
-#: Tag mixed into the oracle seed: ``SeedSequence([run_seed, ORACLE_TAG])``.
-ORACLE_TAG = 0x0AC1
 DEMO_PROBLEM = "swimmer"
 DEMO_BUDGET = 40
 
+FLAGS = {
+    "problem": "--problem",
+    "algorithm": "--algorithm",
+    "seed": "--seeds",
+    "budget": "--budget",
+    "initial_design": "--initial-design",
+    "noise_fraction": "--noise",
+    "optimizer_options": "--option",
+    "problem_options": "--problem",
+}
+"""The command-line flag of each run setting (for error messages)."""
 
-def oracle_seed(run_seed: int) -> int:
-    """The seed of the preference oracle's noise for one run."""
-    ss = np.random.SeedSequence([run_seed, ORACLE_TAG])
-    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+def flag_of(field: str) -> str:
+    """The flag that sets ``field`` (a :class:`SettingError` field), e.g. ``--option``."""
+    head, _, rest = field.partition(".")
+    flag = FLAGS.get(head, head)
+    return f"{flag} {rest}" if rest else flag
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -64,9 +83,9 @@ def _parse_value(text: str) -> object:
         return text
 
 
-def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, dict]:
+def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, dict[str, object]]:
     """``key=value`` (every algorithm that accepts ``key``) or ``alg.key=value``."""
-    per_alg: dict[str, dict] = {a: {} for a in algorithms}
+    per_alg: dict[str, dict[str, object]] = {a: {} for a in algorithms}
     for item in items:
         if "=" not in item:
             raise ValueError(f"--option: expected key=value, got {item!r}")
@@ -85,6 +104,16 @@ def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str,
         for a in accepted:
             per_alg[a][key] = parsed
     return per_alg
+
+
+def _json_object(text: str) -> dict[str, object]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError("must be a JSON object, e.g. '{\"episode_steps\": 200}'")
+    return value
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -122,13 +151,13 @@ def _build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--initial-design",
         type=int,
-        default=2,
+        default=DEFAULT_INITIAL_DESIGN,
         help="shared random initial points per run (paper: 2; policy search 5 d)",
     )
     bench.add_argument(
         "--noise",
         type=float,
-        default=0.1,
+        default=DEFAULT_NOISE_FRACTION,
         help="oracle noise std as a fraction of the problem's value range (paper: 0.1)",
     )
     bench.add_argument(
@@ -141,6 +170,13 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="algorithm option, repeatable; KEY=VALUE goes to every listed algorithm that "
         "accepts KEY, ALG.KEY=VALUE to one (e.g. turpbo.acquisition=qeubo)",
+    )
+    bench.add_argument(
+        "--problem-options",
+        type=_json_object,
+        default={},
+        metavar="JSON",
+        help="problem options as a JSON object, e.g. '{\"episode_steps\": 200}'",
     )
     bench.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     for sp in (bench,):
@@ -163,8 +199,8 @@ def _build_parser() -> argparse.ArgumentParser:
 def _add_ros_commands(sub: argparse._SubParsersAction) -> None:
     """Add ``run``, ``replay`` and ``bag-info``, contributed by the ROS node package.
 
-    They live with the nodes (``localpbo_ros.commands``) so that nothing in ``localpbo_core``
-    imports ROS; without the ROS package installed the ``localpbo`` command simply lacks them.
+    They live with the nodes (``localpbo_ros.commands``, which imports rclpy only when a
+    command runs); without the ROS package installed the ``localpbo`` command lacks them.
     """
     if importlib.util.find_spec("localpbo_ros") is None:
         return
@@ -178,8 +214,8 @@ def _add_threads(parser: argparse.ArgumentParser) -> None:
         "--torch-threads",
         type=int,
         default=None,
-        help="torch intra-op threads (default: torch's choice). The surrogate works on small "
-        "matrices; on a busy machine 1 thread can be many times faster",
+        help="torch and BLAS threads (default: 1 unless OMP_NUM_THREADS, MKL_NUM_THREADS or "
+        "OPENBLAS_NUM_THREADS is set; one thread is fastest for the surrogate's small matrices)",
     )
 
 
@@ -189,64 +225,90 @@ def bench(
     seeds: Sequence[int],
     out: Path,
     budget: int | None = None,
-    initial_design: int = 2,
-    noise: float = 0.1,
-    options: dict[str, dict] | None = None,
+    initial_design: int = DEFAULT_INITIAL_DESIGN,
+    noise: float = DEFAULT_NOISE_FRACTION,
+    options: dict[str, dict[str, object]] | None = None,
     progress: bool = True,
+    problem_options: dict[str, object] | None = None,
 ) -> list[EvaluationRecord]:
     """Run every (algorithm, seed), write the outputs into ``out`` and return all records.
 
-    Every configuration is validated (problem, algorithms, options, budget) before any run.
+    Every configuration is validated (problem, algorithms, options, budget, noise) before
+    any run starts.
+
+    Raises:
+        SettingError: naming the refused setting.
     """
     from tqdm import tqdm
 
-    from localpbo_core.problems import PreferenceOracle, make_problem
+    from localpbo_core.session import Session, build_problem
 
-    problem = make_problem(problem_name)
     options = options or {a: {} for a in algorithms}
-    if budget is None:
-        budget = initial_design + 10 * problem.dim
-    for alg in algorithms:  # fail at start, naming the option
-        make_optimizer(
-            alg,
-            problem.dim,
-            seed=0,
+    plans = [
+        RunSettings(
+            algorithm=alg,
+            problem=problem_name,
+            seed=seed,
             budget=budget,
             initial_design=initial_design,
-            **options[alg],
+            noise_fraction=noise,
+            optimizer_options=options.get(alg, {}),
+            problem_options=problem_options or {},
         )
-    PreferenceOracle(problem, noise_fraction=noise, seed=0)
+        for alg in algorithms
+        for seed in seeds
+    ]
+    problem = build_problem(plans[0])
+    budgets = [Session(p, problem).budget for p in plans if p.seed == seeds[0]]  # fail at start
     out.mkdir(parents=True, exist_ok=True)
+    (out / "runs").mkdir(exist_ok=True)
     records: list[EvaluationRecord] = []
-    total = budget * len(seeds) * len(algorithms)
+    total = sum(budgets) * len(seeds)
     with tqdm(total=total, disable=not progress, unit="eval", dynamic_ncols=True) as bar:
-        for alg in algorithms:
-            for seed in seeds:
-                bar.set_description(f"{alg} seed {seed}")
-                opt = make_optimizer(
-                    alg,
-                    problem.dim,
-                    seed=seed,
-                    budget=budget,
-                    initial_design=initial_design,
-                    **options[alg],
-                )
-                oracle = PreferenceOracle(problem, noise_fraction=noise, seed=oracle_seed(seed))
-                records.extend(
-                    run_loop(
-                        problem,
-                        opt,
-                        oracle,
-                        seed,
-                        algorithm=alg,
-                        on_evaluation=lambda _r: bar.update(1),
-                    )
-                )
-                write_results(records, out / "results.csv")
+        for plan in plans:
+            bar.set_description(f"{plan.algorithm} seed {plan.seed}")
+            trace = run_session(Session(plan, problem), on_evaluation=lambda _r: bar.update(1))
+            records.extend(trace.records)
+            write_trace(plan, trace, out / "runs" / run_file_name(plan))
+            write_results(records, out / "results.csv")
     summary = summarize(records)
     write_summary(summary, out / "summary.csv")
     plot_best_seen(records, out / "best_seen.png")
     return records
+
+
+def run_file_name(settings: RunSettings) -> str:
+    """``<problem>_<algorithm>_seed<seed>.json``: one file per finished run."""
+    return f"{settings.problem}_{settings.algorithm}_seed{settings.seed}.json"
+
+
+def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
+    """One run as JSON: its settings, every candidate (native units and value), every
+    accepted answer and every evaluation record. Floats are written exactly (JSON's
+    shortest round-trip representation)."""
+    doc: dict[str, Any] = {
+        "schema": "localpbo/run/v1",
+        "settings": {
+            "algorithm": settings.algorithm,
+            "problem": settings.problem,
+            "seed": settings.seed,
+            "budget": settings.budget,
+            "initial_design": settings.initial_design,
+            "noise_fraction": settings.noise_fraction,
+            "optimizer_options": dict(settings.optimizer_options),
+            "problem_options": dict(settings.problem_options),
+        },
+        "candidates": [
+            {"id": cid, "native": list(trace.native[cid]), "value": trace.values[cid]}
+            for cid in sorted(trace.native)
+        ],
+        "answers": [
+            {"duel_id": a.duel_id, "first": a.first, "second": a.second, "winner": a.winner}
+            for a in trace.answers
+        ],
+        "records": [dict(zip(RESULT_COLUMNS, r.as_row(), strict=True)) for r in trace.records],
+    }
+    path.write_text(json.dumps(doc, default=str) + "\n")
 
 
 def write_results(records: Sequence[EvaluationRecord], path: Path) -> None:
@@ -344,40 +406,41 @@ def plot_best_seen(records: Sequence[EvaluationRecord], path: Path) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``localpbo`` console script."""
+    from localpbo_core.threads import use_fast_threads
+
     parser = _build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "torch_threads", None) is None:
+        use_fast_threads()
     if hasattr(args, "func"):  # a command contributed by the ROS package
         return int(args.func(args))
     try:
         if args.torch_threads is not None:
             if args.torch_threads < 1:
-                raise ValueError(f"--torch-threads: must be >= 1, got {args.torch_threads}")
+                raise SettingError("--torch-threads", f"must be >= 1, got {args.torch_threads}")
             import torch
 
             torch.set_num_threads(args.torch_threads)
         if args.command == "demo":
             problem, algorithms, seeds = DEMO_PROBLEM, ["turpbo", "sobol"], [args.seed]
-            budget, initial_design, noise = DEMO_BUDGET, 2, 0.1
-            per_alg = {a: {} for a in algorithms}
+            budget, initial_design, noise = DEMO_BUDGET, DEFAULT_INITIAL_DESIGN, None
+            per_alg: dict[str, dict[str, object]] = {a: {} for a in algorithms}
             progress = True
         else:
             algorithms = [a.strip().lower() for a in args.algorithm.split(",") if a.strip()]
             if not algorithms:
-                raise ValueError("--algorithm: empty")
+                raise SettingError("algorithm", "empty")
             for a in algorithms:
                 if a not in available_optimizers():
-                    raise ValueError(
-                        f"--algorithm: unknown algorithm {a!r}; "
-                        f"available: {', '.join(available_optimizers())}"
+                    raise SettingError(
+                        "algorithm",
+                        f"unknown algorithm {a!r}; available: {', '.join(available_optimizers())}",
                     )
             if len(set(algorithms)) != len(algorithms):
-                raise ValueError("--algorithm: repeated algorithm")
+                raise SettingError("algorithm", "repeated algorithm")
             seeds = parse_seeds(args.seeds)
             problem = args.problem
-            budget, initial_design = args.budget, args.initial_design
-            noise = args.noise
-            if not math.isfinite(noise) or noise < 0:
-                raise ValueError(f"--noise: must be a finite number >= 0, got {noise}")
+            budget, initial_design, noise = args.budget, args.initial_design, args.noise
             per_alg = _parse_options(args.option, algorithms)
             if args.batch_size is not None:
                 for a in algorithms:
@@ -391,16 +454,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             out,
             budget=budget,
             initial_design=initial_design,
-            noise=noise,
+            noise=DEFAULT_NOISE_FRACTION if noise is None else noise,
             options=per_alg,
             progress=progress,
+            problem_options=getattr(args, "problem_options", {}),
         )
+    except SettingError as exc:
+        parser.exit(2, f"localpbo: error: {flag_of(exc.field)}: {exc.reason}\n")
     except ValueError as exc:
         parser.exit(2, f"localpbo: error: {exc}\n")
     print(format_table(summarize(records)))
     print(f"results: {out / 'results.csv'}")
     print(f"summary: {out / 'summary.csv'}")
     print(f"plot:    {out / 'best_seen.png'}")
+    print(f"runs:    {out / 'runs'}")
     return 0
 
 

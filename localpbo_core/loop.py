@@ -1,30 +1,30 @@
-"""The in-process tuning loop: problem -> optimizer -> oracle (paper Sec. 6, App. D.1).
+"""The in-process run: one :class:`~localpbo_core.session.Session` driven to its budget
+(paper Sec. 6, App. D.1).
 
-Each candidate is evaluated exactly once with ``problem.evaluate(theta, seed=...)`` where
-the episode seed is derived from the run seed and the candidate id; its noise-free value
-``problem.true_value(theta)`` is recorded for reporting only. Duels are answered by the
-preference oracle from the stored evaluation values; the optimizer only ever receives
-``Outcome`` objects (winner id, loser id).
+Each candidate is evaluated exactly once with :meth:`Session.evaluate` (the problem's value of
+its native parameters with its episode seed); its noise-free value ``problem.true_value``
+is recorded for reporting only. Duels are answered by the run's simulated oracle
+(:meth:`Session.oracle`, seeded per duel) from the stored evaluation values and offered to
+the session with the same acceptance rule as the ROS nodes; the optimizer only ever receives
+outcomes (winner id, loser id).
 
 One record per evaluation with the columns of :data:`RESULT_COLUMNS`. ``best_seen`` and
-``cumulative`` are the paper's metrics (App. D.1 table: best-seen ``f_best`` and cumulative
-``sum_k f_k``) on true values. ``decision_seconds`` is the optimizer's own time in
-``ask``/``tell`` (episodes and oracle excluded), split evenly over the candidates of an ask,
-so the column sums to the optimizer's total time.
+``cumulative`` are the paper's metrics (App. D.1: best-seen ``f_best`` and cumulative
+``sum_k f_k``) on true values. ``decision_seconds`` is the optimizer's own time in ask and
+tell (episodes and oracle excluded), split evenly over the candidates of an ask, so the
+column sums to the optimizer's total time. :class:`RunTrace` keeps what the run exchanged
+(candidates, their values, duels and answers) for comparisons across paths.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from localpbo_core.optimizers.base import Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
-from localpbo_core.problems.base import Problem
+from localpbo_core.session import Answer, Session
 
 RESULT_COLUMNS = (
     "problem",
@@ -37,15 +37,6 @@ RESULT_COLUMNS = (
     "cumulative",
     "decision_seconds",
 )
-
-#: Tag mixed into episode seeds: ``SeedSequence([run_seed, EPISODE_TAG, candidate_id])``.
-EPISODE_TAG = 0xE915
-
-
-class Oracle(Protocol):
-    """A preference oracle: ``compare(a, b)`` is True iff the value ``a`` wins."""
-
-    def compare(self, value_a: float, value_b: float) -> bool: ...
 
 
 @dataclass(frozen=True)
@@ -67,57 +58,61 @@ class EvaluationRecord:
         return [getattr(self, c) for c in RESULT_COLUMNS]
 
 
-def episode_seed(run_seed: int, candidate_id: int) -> int:
-    """The evaluation seed of a candidate, derived from the run seed and its id."""
-    ss = np.random.SeedSequence([run_seed, EPISODE_TAG, candidate_id])
-    return int(ss.generate_state(1, dtype=np.uint32)[0])
+@dataclass
+class RunTrace:
+    """What one run exchanged, in order (for comparisons across paths and for storage).
+
+    Attributes:
+        native: candidate id -> parameters in the problem's units, as evaluated.
+        values: candidate id -> the evaluated value (episode return) the oracle compared.
+        answers: every accepted answer, in acceptance order.
+        records: one :class:`EvaluationRecord` per evaluation.
+    """
+
+    native: dict[int, tuple[float, ...]] = field(default_factory=dict)
+    values: dict[int, float] = field(default_factory=dict)
+    answers: list[Answer] = field(default_factory=list)
+    records: list[EvaluationRecord] = field(default_factory=list)
 
 
-def run_loop(
-    problem: Problem,
-    optimizer: PreferenceOptimizer,
-    oracle: Oracle,
-    seed: int,
-    algorithm: str | None = None,
+def run_session(
+    session: Session,
     on_evaluation: Callable[[EvaluationRecord], None] | None = None,
-) -> list[EvaluationRecord]:
-    """Run ``optimizer`` on ``problem`` until its budget is spent.
+) -> RunTrace:
+    """Drive ``session`` until its budget is spent; return what the run exchanged.
 
     Args:
-        problem: the task (its ``dim`` must equal the optimizer's).
-        optimizer: a fresh ask/tell optimizer.
-        oracle: answers duels from stored evaluation values.
-        seed: run seed (episode seeds derive from it and the candidate id).
-        algorithm: name written to the records (default ``optimizer.name``).
+        session: a fresh session (its settings name the problem, algorithm, seed, noise).
         on_evaluation: called with each record as soon as it is complete.
-
-    Returns:
-        one record per evaluation, in evaluation order.
     """
-    if problem.dim != optimizer.dim:
-        raise ValueError(f"dim: problem has d={problem.dim}, optimizer has d={optimizer.dim}")
-    name = algorithm or optimizer.name
-    values: dict[int, float] = {}
-    records: list[EvaluationRecord] = []
+    settings = session.settings
+    problem = session.problem
+    oracle = session.oracle()
+    trace = RunTrace()
     best = -np.inf
     cumulative = 0.0
     carry = 0.0  # optimizer time of asks without candidates, charged to the next candidates
-    pending: list[tuple[int, float]] = []  # (candidate id, f_true) awaiting decision time
-    while not optimizer.done:
+    while not session.done:
         t0 = time.perf_counter()
-        ask = optimizer.ask()
+        step = session.ask()
         decide = time.perf_counter() - t0
-        for cand in ask.candidates:
-            values[cand.id] = float(problem.evaluate(cand.theta, seed=episode_seed(seed, cand.id)))
+        pending: list[tuple[int, float]] = []  # (candidate id, f_true)
+        for cand in step.candidates:
+            trace.native[cand.id] = tuple(float(v) for v in session.native(cand.theta))
+            trace.values[cand.id] = session.evaluate(cand)
             pending.append((cand.id, float(problem.true_value(cand.theta))))
-        outcomes = []
-        for duel in ask.duels:
-            a, b = duel.first, duel.second
-            a_wins = bool(oracle.compare(values[a], values[b]))
-            outcomes.append(Outcome(a, b) if a_wins else Outcome(b, a))
-        t0 = time.perf_counter()
-        optimizer.tell(outcomes)
-        decide += time.perf_counter() - t0 + carry
+        for duel in step.duels:
+            first_wins = oracle.first_wins(
+                duel.duel_id, trace.values[duel.first], trace.values[duel.second]
+            )
+            answer = Answer.decisive(duel, duel.first if first_wins else duel.second)
+            t0 = time.perf_counter()
+            verdict = session.offer(answer)
+            decide += time.perf_counter() - t0
+            if not verdict.accepted:
+                raise RuntimeError(f"duel {duel.duel_id}: {verdict.reason.value} {verdict.detail}")
+            trace.answers.append(answer)
+        decide += carry
         if not pending:
             carry = decide
             continue
@@ -128,17 +123,16 @@ def run_loop(
             cumulative += f_true
             rec = EvaluationRecord(
                 problem=problem.name,
-                algorithm=name,
-                seed=seed,
-                evaluation=len(records) + 1,
+                algorithm=settings.algorithm,
+                seed=settings.seed,
+                evaluation=len(trace.records) + 1,
                 candidate_id=cid,
                 f_true=f_true,
                 best_seen=float(best),
                 cumulative=cumulative,
                 decision_seconds=share,
             )
-            records.append(rec)
+            trace.records.append(rec)
             if on_evaluation is not None:
                 on_evaluation(rec)
-        pending = []
-    return records
+    return trace

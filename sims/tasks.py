@@ -242,6 +242,23 @@ class LinearPolicyTask:
         """Return of one episode of theta's policy; ``seed`` fixes the reset noise."""
         return self.rollout(theta, seed).episode_return
 
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
+        """Return of one episode of the policy with flattened weights ``x`` (in the box)."""
+        flat = np.asarray(x, dtype=np.float64)
+        if flat.shape != (self.dim,):
+            raise ValueError(f"x: expected shape ({self.dim},) for {self.name}, got {flat.shape}")
+        if (
+            not np.all(np.isfinite(flat))
+            or np.any(flat < self.weight_low)
+            or np.any(flat > self.weight_high)
+        ):
+            raise ValueError(
+                f"x: weights must be finite and in [{self.weight_low}, {self.weight_high}] "
+                f"for {self.name}"
+            )
+        weights = flat.reshape(self.action_dim, self.obs_dim)
+        return self.rollout_weights(weights, seed).episode_return
+
     def true_value(self, theta: np.ndarray) -> float:
         """Noise-free value: mean return over the reset seeds ``TRUE_VALUE_SEEDS``."""
         weights = self.policy_from_theta(theta)

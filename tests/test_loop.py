@@ -1,4 +1,4 @@
-"""The in-process loop (localpbo_core.loop): records, seeds, timing, and no f_true leak."""
+"""The in-process run (localpbo_core.loop.run_session): records, seeds, timing, no f_true leak."""
 
 from __future__ import annotations
 
@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 import localpbo_core.loop as loop_mod
-from localpbo_core import make_optimizer
-from localpbo_core.loop import RESULT_COLUMNS, episode_seed, run_loop
+import localpbo_core.session as session_mod
+from localpbo_core.loop import RESULT_COLUMNS, run_session
 from localpbo_core.optimizers import Outcome
+from localpbo_core.seeds import episode_seed
+from localpbo_core.session import RunSettings, Session, SettingError
 
 
 class Clock:
@@ -46,20 +48,30 @@ class TinyProblem:
         return float(-np.sum((theta - 0.3) ** 2))
 
     def evaluate(self, theta: np.ndarray, seed: int) -> float:
+        return self.evaluate_native(self.to_native(theta), seed)
+
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
         self._watch()
         self.calls.append(("eval", seed))
         if self.clock is not None:
             self.clock.now += 100.0  # episodes must not count as decision time
-        return self.true_value(theta) + 0.01 * np.random.default_rng(seed).standard_normal()
+        return float(-np.sum((x - 0.3) ** 2)) + 0.01 * np.random.default_rng(seed).standard_normal()
 
 
 class RecordingOracle:
     def __init__(self) -> None:
-        self.pairs: list[tuple[float, float]] = []
+        self.pairs: list[tuple[int, float, float]] = []
 
-    def compare(self, value_a: float, value_b: float) -> bool:
-        self.pairs.append((value_a, value_b))
+    def first_wins(self, duel_id: int, value_a: float, value_b: float) -> bool:
+        self.pairs.append((duel_id, value_a, value_b))
         return value_a > value_b
+
+
+def tiny_session(algorithm: str, seed: int, budget: int, problem: TinyProblem, **options):
+    settings = RunSettings(
+        algorithm=algorithm, problem="tiny", seed=seed, budget=budget, optimizer_options=options
+    )
+    return Session(settings, problem)
 
 
 class TimedOptimizer:
@@ -88,9 +100,12 @@ def test_records_metrics_seeds_and_decision_time(monkeypatch: pytest.MonkeyPatch
     clock = Clock()
     monkeypatch.setattr(loop_mod.time, "perf_counter", clock)
     prob = TinyProblem(clock)
-    opt = TimedOptimizer(make_optimizer("sobol", 3, seed=2, budget=12, batch_size=2), clock)
+    session = tiny_session("sobol", 7, 12, prob, batch_size=2)
+    opt = TimedOptimizer(session.optimizer, clock)
+    session.optimizer = opt  # type: ignore[assignment]
     oracle = RecordingOracle()
-    recs = run_loop(prob, opt, oracle, seed=7)
+    monkeypatch.setattr(session, "oracle", lambda: oracle)
+    recs = run_session(session).records
     assert len(recs) == 12
     assert [r.evaluation for r in recs] == list(range(1, 13))
     assert [r.candidate_id for r in recs] == list(range(12))
@@ -105,13 +120,13 @@ def test_records_metrics_seeds_and_decision_time(monkeypatch: pytest.MonkeyPatch
     assert seeds == [episode_seed(7, i) for i in range(12)]
     assert len(set(seeds)) == 12
     assert episode_seed(7, 0) != episode_seed(8, 0)
-    # the oracle saw the stored evaluation values of the dueled candidates
+    # the oracle saw the stored evaluation values of the dueled candidates, by duel id
     thetas = [c.theta for c in opt.history.candidates]
     vals = [
         float(-np.sum((t - 0.3) ** 2)) + 0.01 * np.random.default_rng(s).standard_normal()
         for t, s in zip(thetas, seeds, strict=True)
     ]
-    expected = [(vals[d.first], vals[d.second]) for d in opt.history.duels]
+    expected = [(k, vals[d.first], vals[d.second]) for k, d in enumerate(opt.history.duels)]
     assert oracle.pairs == expected
     assert set(RESULT_COLUMNS) == set(recs[0].__dataclass_fields__)
 
@@ -119,13 +134,48 @@ def test_records_metrics_seeds_and_decision_time(monkeypatch: pytest.MonkeyPatch
 @pytest.mark.parametrize("name", ["sobol", "turpbo"])
 def test_no_optimizer_code_ever_touches_the_problem(name: str) -> None:
     prob = TinyProblem()
-    opt = make_optimizer(name, 3, seed=0, budget=8)
-    run_loop(prob, opt, RecordingOracle(), seed=0)
+    run_session(tiny_session(name, 0, 8, prob))
     assert prob.calls
     assert not [f for f in prob.callers if "localpbo_core/optimizers" in f]
-    assert any(f.endswith("localpbo_core/loop.py") for f in prob.callers)
+    assert any(f.endswith("localpbo_core/session.py") for f in prob.callers)
 
 
-def test_dim_mismatch_is_rejected() -> None:
-    with pytest.raises(ValueError, match="dim"):
-        run_loop(TinyProblem(), make_optimizer("sobol", 4, seed=0), RecordingOracle(), seed=0)
+def test_answers_of_an_ask_are_told_in_duel_order_whatever_the_arrival_order() -> None:
+    """The session buffers the answers of an ask and tells them by duel id."""
+    runs = []
+    for reverse in (False, True):
+        session = tiny_session("sobol", 3, 10, TinyProblem(), batch_size=3)
+        oracle = session.oracle()
+        values: dict[int, float] = {}
+        while not session.done:
+            step = session.ask()
+            for cand in step.candidates:
+                values[cand.id] = session.evaluate(cand)
+            duels = list(reversed(step.duels)) if reverse else list(step.duels)
+            for duel in duels:
+                first = oracle.first_wins(duel.duel_id, values[duel.first], values[duel.second])
+                winner = duel.first if first else duel.second
+                assert session.offer(session_mod.Answer.decisive(duel, winner)).accepted
+        runs.append(session.optimizer.history)
+    assert runs[0].outcomes == runs[1].outcomes
+    assert [c.theta.tobytes() for c in runs[0].candidates] == [
+        c.theta.tobytes() for c in runs[1].candidates
+    ]
+
+
+def test_settings_errors_name_their_field() -> None:
+    with pytest.raises(SettingError) as err:
+        tiny_session("sobol", 0, 10, TinyProblem(), batch_size=0)
+    assert err.value.field == "optimizer_options.batch_size"
+    with pytest.raises(SettingError) as err:
+        tiny_session("sobol", 0, 10, TinyProblem(), no_such_option=1)
+    assert err.value.field == "optimizer_options.no_such_option"
+    with pytest.raises(SettingError) as err:
+        RunSettings(algorithm="sobol", problem="tiny", noise_fraction=-1.0)
+    assert (err.value.field, err.value.reason) == ("noise_fraction", "must be >= 0, got -1.0")
+    with pytest.raises(SettingError) as err:
+        Session(RunSettings(algorithm="nope", problem="hartmann6"))
+    assert err.value.field == "algorithm"
+    with pytest.raises(SettingError) as err:
+        Session(RunSettings(algorithm="sobol", problem="nope"))
+    assert err.value.field == "problem"

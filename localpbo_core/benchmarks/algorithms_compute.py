@@ -2,7 +2,7 @@
 
 For each problem (default Hartmann 6D, 62 evaluations, and Rosenbrock 16D, 162 evaluations:
 the ``2 + 10d`` budget of App. D.1 with 2 initial points and 10 % oracle noise) and every
-registered algorithm, one in-process run per seed (:func:`localpbo_core.loop.run_loop`). The
+registered algorithm, one in-process run per seed (:func:`localpbo_core.loop.run_session`). The
 optimizer's compute is the sum of ``decision_seconds`` (its own ``ask``/``tell`` time;
 evaluations and the oracle excluded). Printed: seconds per run (mean over seeds), the paper's
 figure (App. E, 8-core CPU nodes), the ratio paper/ours, the issue-5 target and the final
@@ -12,7 +12,7 @@ Before the timed runs each algorithm does one untimed warm-up run of 4 evaluatio
 costs of a process: lazy imports, numba compilation in glis). Run single-threaded for
 comparable figures:
 
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.algorithms_compute \\
+    python -m localpbo_core.benchmarks.algorithms_compute \\
         [--problems hartmann6,rosenbrock16] [--algorithms qeubo,glisp] [--seeds 0] \\
         [--option qeubo.hyperparameter_refit_every=5]
 """
@@ -70,16 +70,20 @@ def run_one(
     true value). The CPU time includes the (negligible) synthetic evaluations and oracle; it is
     insensitive to other processes competing for the cores, unlike the wall-clock
     ``decision_seconds``."""
-    from localpbo_core.cli import oracle_seed
-    from localpbo_core.loop import run_loop
-    from localpbo_core.optimizers import make_optimizer
-    from localpbo_core.problems import PreferenceOracle, make_problem
+    from localpbo_core.loop import run_session
+    from localpbo_core.session import RunSettings, Session
 
-    problem = make_problem(problem_name)
-    opt = make_optimizer(algorithm, problem.dim, seed=seed, budget=budget, **(options or {}))
-    oracle = PreferenceOracle(problem, noise_fraction=noise, seed=oracle_seed(seed))
+    settings = RunSettings(
+        algorithm=algorithm,
+        problem=problem_name,
+        seed=seed,
+        budget=budget,
+        noise_fraction=noise,
+        optimizer_options=options or {},
+    )
+    session = Session(settings)
     cpu0 = time.process_time()
-    records = run_loop(problem, opt, oracle, seed, algorithm=algorithm)
+    records = run_session(session).records
     cpu = time.process_time() - cpu0
     return (
         float(sum(r.decision_seconds for r in records)),

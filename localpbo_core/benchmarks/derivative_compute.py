@@ -6,7 +6,7 @@ oracle noise, through ``localpbo bench``'s in-process loop. Prints the optimizer
 paper's figure. Issue 5 targets: GIPBO >= 20x below the paper, PrefSQP >= 10x below, GIPBOr
 at most the paper's figure. Run with one thread for comparable numbers:
 
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.derivative_compute \
+    python -m localpbo_core.benchmarks.derivative_compute \
         [--problems hartmann6,rosenbrock16] [--algorithms gipbo,gipbor,prefsqp] [--seeds 0]
 """
 

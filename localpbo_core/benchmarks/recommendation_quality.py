@@ -6,7 +6,7 @@ the incumbent (the candidate that won its latest duel), of the recommendation
 given all duels) and the best value seen. Neither choice reads a value; ``f_true`` is only
 for this report.
 
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.recommendation_quality \\
+    python -m localpbo_core.benchmarks.recommendation_quality \\
         [--problem swimmer] [--algorithm turpbo] [--seeds 0-5] [--budget 162]
 
 A script, not a test: it prints figures and asserts nothing.
@@ -20,12 +20,10 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from localpbo_core import make_optimizer
 from localpbo_core.cli import parse_seeds
-from localpbo_core.loop import run_loop
-from localpbo_core.optimizers.recommendation import recommend
+from localpbo_core.loop import run_session
 from localpbo_core.problems import make_problem
-from localpbo_core.problems.oracle import PreferenceOracle
+from localpbo_core.session import RunSettings, Session
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -44,11 +42,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"{'seed':>4} {'incumbent':>10} {'recommended':>12} {'best seen':>10}")
     rows = []
     for seed in parse_seeds(args.seeds):
-        opt = make_optimizer(args.algorithm, problem.dim, seed=seed, budget=args.budget)
-        records = run_loop(problem, opt, PreferenceOracle(problem, args.noise, seed=seed), seed)
+        settings = RunSettings(
+            algorithm=args.algorithm,
+            problem=args.problem,
+            seed=seed,
+            budget=args.budget,
+            noise_fraction=args.noise,
+        )
+        session = Session(settings, problem)
+        records = run_session(session).records
         value = {r.candidate_id: r.f_true for r in records}
-        rec = recommend(opt)
-        inc = opt.incumbent
+        rec = session.recommendation()
+        inc = session.incumbent
         assert rec is not None and inc is not None
         rows.append((value[inc.id], value[rec.id], max(value.values())))
         print(f"{seed:>4} {rows[-1][0]:>10.4g} {rows[-1][1]:>12.4g} {rows[-1][2]:>10.4g}")

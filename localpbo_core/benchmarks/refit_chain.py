@@ -12,8 +12,8 @@ lengthscales at theirs, the regime of the compute target. Prints the time and ob
 evaluations per refit, the speed-up against ``l-bfgs-b`` + ``whitened`` (the reference: what the
 surrogate did before both), and the largest difference in the final log marginal likelihoods.
 
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.refit_chain [--sizes 165,330,495]
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.refit_chain --source hopper --sizes 445
+    python -m localpbo_core.benchmarks.refit_chain [--sizes 165,330,495]
+    python -m localpbo_core.benchmarks.refit_chain --source hopper --sizes 445
 
 A script, not a test: it prints figures and asserts nothing.
 """
@@ -52,14 +52,15 @@ def run_chain(
 
 def hopper_duels(evaluations: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Points and duels of a TuRPBO run on Hopper (165 random evaluations first, 10% noise)."""
-    from localpbo_core import make_optimizer
-    from localpbo_core.loop import run_loop
-    from localpbo_core.problems import make_problem
-    from localpbo_core.problems.oracle import PreferenceOracle
+    from localpbo_core.loop import run_session
+    from localpbo_core.session import RunSettings, Session
 
-    problem = make_problem("hopper")
-    opt = make_optimizer("turpbo", problem.dim, seed, budget=evaluations, initial_design=165)
-    run_loop(problem, opt, PreferenceOracle(problem, 0.1, seed=seed), seed=seed)
+    settings = RunSettings(
+        algorithm="turpbo", problem="hopper", seed=seed, budget=evaluations, initial_design=165
+    )
+    session = Session(settings)
+    run_session(session)
+    opt = session.optimizer
     X = torch.tensor(opt.train_inputs(), dtype=torch.float64)
     return X, torch.tensor(opt.comparisons(), dtype=torch.long)
 

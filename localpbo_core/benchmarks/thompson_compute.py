@@ -10,7 +10,7 @@ gradient in float64 numpy), their ratio, a breakdown of the new route, and the p
 reached by both (the same path for both, so they should match closely). Box: TuRBO's
 lengthscale-weighted box of side 0.4 around a training point. Run single-threaded:
 
-    OMP_NUM_THREADS=1 python -m localpbo_core.benchmarks.thompson_compute [--reps 15] [--seed 0]
+    python -m localpbo_core.benchmarks.thompson_compute [--reps 15] [--seed 0]
 """
 
 from __future__ import annotations
@@ -23,6 +23,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 from torch import Tensor
+
+from localpbo_core.threads import use_fast_threads
 
 DIM = 33
 SIZES = (165, 330, 495)
@@ -116,6 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of data, boxes and paths")
     parser.add_argument("--sizes", default=",".join(map(str, SIZES)), help="training sizes p")
     args = parser.parse_args(argv)
+    use_fast_threads()
     if args.reps < 2:
         raise ValueError("--reps must be >= 2 (the first repetition is not timed)")
     sizes = [int(s) for s in args.sizes.split(",")]

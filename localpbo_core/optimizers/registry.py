@@ -1,29 +1,41 @@
-"""``make_optimizer`` / ``available_optimizers``: the single way to build an optimizer."""
+"""``make_optimizer`` / ``available_optimizers``: the single way to build an optimizer.
+
+Algorithms are registered by import path and imported only when built or inspected, so
+listing them (``localpbo bench --help``) loads neither torch nor BoTorch.
+"""
 
 from __future__ import annotations
 
+import importlib
 import inspect
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from localpbo_core.optimizers.glisp import GLISpOptimizer
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
-from localpbo_core.optimizers.qeubo import QEUBO
-from localpbo_core.optimizers.sobol import SobolOptimizer
-from localpbo_core.optimizers.turpbo import TuRPBO
+from localpbo_core.settings import DEFAULT_INITIAL_DESIGN, SettingError, default_budget
 
-_REGISTRY: dict[str, Callable[..., PreferenceOptimizer]] = {
-    "sobol": SobolOptimizer,
-    "turpbo": TuRPBO,
-    "qeubo": QEUBO,
-    "glisp": GLISpOptimizer,
+if TYPE_CHECKING:
+    from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+
+Factory = Callable[..., "PreferenceOptimizer"]
+
+_REGISTRY: dict[str, str | Factory] = {
+    "sobol": "localpbo_core.optimizers.sobol:SobolOptimizer",
+    "turpbo": "localpbo_core.optimizers.turpbo:TuRPBO",
+    "qeubo": "localpbo_core.optimizers.qeubo:QEUBO",
+    "glisp": "localpbo_core.optimizers.glisp:GLISpOptimizer",
+    "gipbo": "localpbo_core.optimizers.gipbo:GIPBO",
+    "gipbor": "localpbo_core.optimizers.gipbo:GIPBOr",
+    "prefsqp": "localpbo_core.optimizers.prefsqp:PrefSQP",
 }
 
+_RUN_ARGUMENTS = ("self", "dim", "seed", "budget")
 
-def register_optimizer(name: str, factory: Callable[..., PreferenceOptimizer]) -> None:
-    """Add an algorithm (used by later issues, e.g. GIPBO, PrefSQP)."""
+
+def register_optimizer(name: str, factory: Factory | str) -> None:
+    """Add an algorithm: a factory, or its import path ``"package.module:Name"``."""
     key = name.lower()
     if key in _REGISTRY:
-        raise ValueError(f"algorithm: {name!r} is already registered")
+        raise SettingError("algorithm", f"{name!r} is already registered")
     _REGISTRY[key] = factory
 
 
@@ -34,18 +46,23 @@ def available_optimizers() -> list[str]:
 
 def optimizer_options(name: str) -> list[str]:
     """Keyword options accepted by algorithm ``name`` (besides dim, seed, budget)."""
-    factory = _lookup(name)
-    params = inspect.signature(factory).parameters
-    return [p for p in params if p not in ("self", "dim", "seed", "budget")]
+    params = inspect.signature(_lookup(name)).parameters
+    return [p for p in params if p not in _RUN_ARGUMENTS]
 
 
-def _lookup(name: str) -> Callable[..., PreferenceOptimizer]:
+def _lookup(name: str) -> Factory:
     key = str(name).lower()
     if key not in _REGISTRY:
-        raise ValueError(
-            f"algorithm: unknown algorithm {name!r}; available: {', '.join(available_optimizers())}"
+        raise SettingError(
+            "algorithm",
+            f"unknown algorithm {name!r}; available: {', '.join(available_optimizers())}",
         )
-    return _REGISTRY[key]
+    entry = _REGISTRY[key]
+    if isinstance(entry, str):
+        module, _, attr = entry.partition(":")
+        entry = getattr(importlib.import_module(module), attr)
+        _REGISTRY[key] = entry
+    return entry
 
 
 def make_optimizer(
@@ -57,37 +74,28 @@ def make_optimizer(
         name: algorithm name (see :func:`available_optimizers`), case-insensitive.
         dim: dimension d of theta in [0,1]^d.
         seed: non-negative integer seed.
-        budget: total evaluations including the initial design; default ``2 + 10 d``
-            (paper App. D.1, synthetic benchmarks) plus any extra initial design points.
+        budget: total evaluations including the initial design; default
+            :func:`~localpbo_core.settings.default_budget` (``initial design + 10 d``, paper
+            App. D.1).
         **options: algorithm options, e.g. ``initial_design``, ``warm_start``,
             ``batch_size``, ``acquisition``.
 
     Raises:
-        ValueError: unknown algorithm or option (named), bad dim, budget or warm start.
+        SettingError: unknown algorithm or option (``field`` names it).
+        ValueError: a bad value of dim, budget, warm start or an option (named).
     """
+    from localpbo_core.threads import use_fast_threads
+
     factory = _lookup(name)
     allowed = optimizer_options(name)
     for key in options:
         if key not in allowed:
-            raise ValueError(
-                f"option {key!r}: not an option of {name!r}; allowed: {', '.join(allowed)}"
-            )
+            raise SettingError(key, f"not an option of {name!r}; allowed: {', '.join(allowed)}")
     if budget is None:
         if isinstance(dim, int) and dim >= 1:
-            init = options.get("initial_design", 2)
-            budget = (init if isinstance(init, int) else 2) + 10 * dim
+            init = options.get("initial_design", DEFAULT_INITIAL_DESIGN)
+            budget = default_budget(dim, init if isinstance(init, int) else DEFAULT_INITIAL_DESIGN)
         else:
             budget = 0
+    use_fast_threads()
     return factory(dim=dim, seed=seed, budget=budget, **options)
-
-
-# --- derivative-informed local methods (issue 5: GIPBO, GIPBOr, PrefSQP; helper G) -------------
-def _register_derivative_methods() -> None:
-    from localpbo_core.optimizers.gipbo import GIPBO, GIPBOr
-    from localpbo_core.optimizers.prefsqp import PrefSQP
-
-    for key, factory in (("gipbo", GIPBO), ("gipbor", GIPBOr), ("prefsqp", PrefSQP)):
-        _REGISTRY.setdefault(key, factory)
-
-
-_register_derivative_methods()

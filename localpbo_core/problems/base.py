@@ -42,6 +42,15 @@ class Problem(Protocol):
         """
         ...
 
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
+        """One evaluation of parameters ``x`` given in the problem's own units.
+
+        ``evaluate(theta, seed) == evaluate_native(to_native(theta), seed)``: a simulator or
+        controller that receives native parameters evaluates exactly what the optimizer
+        proposed (no round trip through [0,1]^d). ``x`` must lie in the box.
+        """
+        ...
+
     def true_value(self, theta: np.ndarray) -> float:
         """The noise-free value of theta used for reporting (best-seen, cumulative).
 

@@ -1,13 +1,19 @@
-"""The noisy preference oracle of the paper (Sec. 3, eq. noise and eq. pi).
+"""The noisy preference oracle of the paper (Sec. 2, eqs. (2) and (3)).
 
 A comparison of values ``f_a`` and ``f_b`` observes ``y_a = f_a + eps_a`` and
-``y_b = f_b + eps_b`` with ``eps_a, eps_b ~ N(0, sigma_n^2)`` i.i.d. (eq. noise) and reports
-whether ``y_a > y_b`` (eq. pi: ``pi = 0``, the first input preferred, iff ``y_a > y_b``; ties
-go to the second). ``sigma_n = noise_fraction * problem.value_range`` with
+``y_b = f_b + eps_b`` with ``eps_a, eps_b ~ N(0, sigma_n^2)`` i.i.d. (eq. (2), the observation
+noise) and reports whether ``y_a > y_b`` (eq. (3): the first input is preferred iff
+``y_a > y_b``; ties go to the second). ``sigma_n = noise_fraction * problem.value_range`` with
 ``noise_fraction = 0.1`` by default (paper Sec. 6 and App. D.1, "Noise model").
 
-The noise comes from ``numpy.random.default_rng(seed)``: two standard normals per comparison
-(first for a, then for b), so outcomes are deterministic given the seed and the call order.
+Two forms, the same noise model:
+
+* :class:`DuelOracle`, used by every run of localpbo: duel ``k`` of a run draws its two
+  standard normals (first for a, then for b) from a generator seeded by
+  ``localpbo_core.seeds.duel_seed(run seed, k)``, so an answer depends on the run seed, the
+  duel id and the two values only, whichever process answers it and in whichever order;
+* :class:`PreferenceOracle`, one generator for a sequence of comparisons (deterministic given
+  the seed and the call order), for studies of the noise model itself.
 """
 
 from __future__ import annotations
@@ -17,12 +23,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from localpbo_core.seeds import duel_seed
+from localpbo_core.settings import DEFAULT_NOISE_FRACTION
+
 from ._validation import check_seed
 from .base import Problem
 
 
-class Duel(NamedTuple):
-    """Outcome of ``PreferenceOracle.duel``: whether a won, and the two evaluated values."""
+class Comparison(NamedTuple):
+    """Result of ``PreferenceOracle.duel``: whether a won, and the two evaluated values."""
 
     a_wins: bool
     value_a: float
@@ -39,46 +48,91 @@ class PreferenceOracle:
         seed: seed of the oracle's own noise generator.
     """
 
-    def __init__(self, problem: Problem, noise_fraction: float = 0.1, seed: int = 0) -> None:
-        if (
-            isinstance(noise_fraction, bool)
-            or not isinstance(noise_fraction, int | float)
-            or not math.isfinite(noise_fraction)
-        ):
-            raise ValueError(f"noise_fraction: expected a finite number, got {noise_fraction!r}")
-        if noise_fraction < 0:
-            raise ValueError(f"noise_fraction: must be >= 0, got {noise_fraction!r}")
-        value_range = float(problem.value_range)
-        if noise_fraction > 0 and not (math.isfinite(value_range) and value_range > 0):
-            raise ValueError(
-                f"value_range: problem {problem.name!r} has value_range {value_range!r}; "
-                "a positive finite range is needed for noise_fraction > 0"
-            )
+    def __init__(
+        self, problem: Problem, noise_fraction: float = DEFAULT_NOISE_FRACTION, seed: int = 0
+    ) -> None:
         self.problem = problem
         self.noise_fraction = float(noise_fraction)
-        self.noise_std = self.noise_fraction * value_range if noise_fraction > 0 else 0.0
+        self.noise_std = noise_std(problem, noise_fraction)
         self.seed = check_seed(seed)
         self._rng = np.random.default_rng(self.seed)
         self.comparisons = 0
 
     def noisy_pair(self, value_a: float, value_b: float) -> tuple[float, float]:
         """The noisy observations ``(y_a, y_b)`` of eq. noise (advances the generator)."""
-        for label, value in (("value_a", value_a), ("value_b", value_b)):
-            if not math.isfinite(float(value)):
-                raise ValueError(f"{label}: expected a finite value, got {value!r}")
-        eps = self._rng.standard_normal(2)
+        pair = _noisy_pair(self.noise_std, self._rng, value_a, value_b)
         self.comparisons += 1
-        y_a = float(value_a) + self.noise_std * float(eps[0])
-        y_b = float(value_b) + self.noise_std * float(eps[1])
-        return y_a, y_b
+        return pair
 
     def compare(self, value_a: float, value_b: float) -> bool:
         """True if a wins: ``y_a > y_b`` under the noise of eq. noise (eq. pi)."""
         y_a, y_b = self.noisy_pair(value_a, value_b)
         return bool(y_a > y_b)
 
-    def duel(self, theta_a: np.ndarray, seed_a: int, theta_b: np.ndarray, seed_b: int) -> Duel:
+    def duel(
+        self, theta_a: np.ndarray, seed_a: int, theta_b: np.ndarray, seed_b: int
+    ) -> Comparison:
         """Evaluate both thetas (one seeded evaluation each), then ``compare`` the values."""
         value_a = self.problem.evaluate(theta_a, seed_a)
         value_b = self.problem.evaluate(theta_b, seed_b)
-        return Duel(self.compare(value_a, value_b), value_a, value_b)
+        return Comparison(self.compare(value_a, value_b), value_a, value_b)
+
+
+class DuelOracle:
+    """The oracle of a run: duel ``k`` draws its noise from ``duel_seed(run_seed, k)``.
+
+    Args:
+        problem: supplies ``value_range``.
+        noise_fraction: noise std as a fraction of ``problem.value_range`` (>= 0).
+        run_seed: the run seed.
+    """
+
+    def __init__(
+        self, problem: Problem, noise_fraction: float = DEFAULT_NOISE_FRACTION, run_seed: int = 0
+    ) -> None:
+        self.noise_fraction = float(noise_fraction)
+        self.noise_std = noise_std(problem, noise_fraction)
+        self.run_seed = check_seed(run_seed)
+
+    def first_wins(self, duel_id: int, value_first: float, value_second: float) -> bool:
+        """True if the first candidate of duel ``duel_id`` is preferred (eq. (3))."""
+        rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
+        y_first, y_second = _noisy_pair(self.noise_std, rng, value_first, value_second)
+        return bool(y_first > y_second)
+
+
+def noise_std(problem: Problem, noise_fraction: float) -> float:
+    """``noise_fraction * problem.value_range`` (0 for a noise-free oracle).
+
+    Raises:
+        ValueError: ``noise_fraction`` is not a finite number >= 0, or is > 0 for a problem
+            without a positive finite value range.
+    """
+    if (
+        isinstance(noise_fraction, bool)
+        or not isinstance(noise_fraction, int | float)
+        or not math.isfinite(noise_fraction)
+    ):
+        raise ValueError(f"noise_fraction: expected a finite number, got {noise_fraction!r}")
+    if noise_fraction < 0:
+        raise ValueError(f"noise_fraction: must be >= 0, got {noise_fraction!r}")
+    if noise_fraction == 0:
+        return 0.0
+    value_range = float(problem.value_range)
+    if not (math.isfinite(value_range) and value_range > 0):
+        raise ValueError(
+            f"value_range: problem {problem.name!r} has value_range {value_range!r}; "
+            "a positive finite range is needed for noise_fraction > 0"
+        )
+    return float(noise_fraction) * value_range
+
+
+def _noisy_pair(
+    std: float, rng: np.random.Generator, value_a: float, value_b: float
+) -> tuple[float, float]:
+    """``(y_a, y_b)`` of eq. (2): two standard normals from ``rng``, first for a."""
+    for label, value in (("value_a", value_a), ("value_b", value_b)):
+        if not math.isfinite(float(value)):
+            raise ValueError(f"{label}: expected a finite value, got {value!r}")
+    eps = rng.standard_normal(2)
+    return float(value_a) + std * float(eps[0]), float(value_b) + std * float(eps[1])

@@ -123,6 +123,18 @@ class SyntheticProblem:
         check_seed(seed)
         return self.true_value(theta)
 
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
+        """Negated function value at native ``x`` (inside the box ``[lower, upper]^d``)."""
+        check_seed(seed)
+        arr = np.asarray(x, dtype=np.float64)
+        if arr.shape != (self.dim,):
+            raise ValueError(f"x: expected shape ({self.dim},) for {self.name}, got {arr.shape}")
+        if not np.all(np.isfinite(arr)) or np.any(arr < self.lower) or np.any(arr > self.upper):
+            raise ValueError(
+                f"x: entries must be finite and in [{self.lower}, {self.upper}] for {self.name}"
+            )
+        return float(-self.minimise_fn(arr))
+
 
 # max − min over 10,000 scrambled Sobol points (seed 0); reproduce with
 # `python -m localpbo_core.problems.calibrate --problem NAME --points 10000`.

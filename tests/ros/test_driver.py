@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from localpbo_ros.driver import Driver, make_run_config, rebuild
+from localpbo_ros.driver import Driver, rebuild
 
 from localpbo_core.optimizers import Outcome, make_optimizer
 from localpbo_core.problems import make_problem
 from localpbo_msgs_py import DuelOutcome, DuelRequest
 
+from .configs import run_config
 from .conftest import SMALL_TASK
 
 
@@ -18,7 +19,7 @@ def config(**kw):
         run_id="t1", algorithm="sobol", task="swimmer", seed=5, budget=12, task_options=SMALL_TASK
     )
     base.update(kw)
-    return make_run_config(**base)
+    return run_config(**base)
 
 
 def rule(theta_a, theta_b) -> bool:
@@ -58,7 +59,7 @@ def test_offer_refusals_leave_state_unchanged() -> None:
     drv = Driver(config())
     work = drv.ask()
     req = work.requests[0]
-    before = drv.optimizer.history
+    before = drv.session.optimizer.history
     bad = [
         (
             DuelOutcome.decisive(
@@ -81,14 +82,14 @@ def test_offer_refusals_leave_state_unchanged() -> None:
     ]
     for out, reason in bad:
         verdict = drv.offer(out)
-        assert not verdict.accepted and verdict.reason == reason
-        assert drv.optimizer.history == before and drv.step_open
+        assert not verdict.accepted and verdict.reason.value == reason
+        assert drv.session.optimizer.history == before and drv.step_open
     good = DuelOutcome.decisive(req, req.first_id)
     assert drv.offer(good).accepted
-    history = drv.optimizer.history
-    assert drv.offer(good).reason == "duplicate"
-    assert drv.offer(DuelOutcome.decisive(req, req.second_id)).reason == "repeated"
-    assert drv.optimizer.history == history
+    history = drv.session.optimizer.history
+    assert drv.offer(good).reason.value == "duplicate"
+    assert drv.offer(DuelOutcome.decisive(req, req.second_id)).reason.value == "repeated"
+    assert drv.session.optimizer.history == history
 
 
 @pytest.mark.parametrize(

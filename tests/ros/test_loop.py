@@ -65,8 +65,8 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
             if m.channel.topic == EPISODE_RESULT.name
         )
     }
-    assert summary.best_return == returns[summary.best_id]
-    assert summary.first_return == returns[0]
+    assert summary.incumbent_return == returns[summary.incumbent_id]
+    assert summary.first_candidate_return == returns[0]
     assert summary.recommended_return == returns[summary.recommended_id]
     text = summary.format()
     assert (
@@ -101,7 +101,7 @@ def test_full_loop_recorded_and_verified(tmp_path) -> None:
             ]
         )
         did += len(ask.duels)
-    assert summary.best_id == ref.incumbent.id
+    assert summary.incumbent_id == ref.incumbent.id
 
 
 def _to_rclpy(msg):
@@ -210,17 +210,17 @@ def test_playback_qos_from_offered_profiles() -> None:
 
 def _flaky_evaluator(fail_times: int):
     """Swimmer episodes, except candidate 3 raises ``fail_times`` times first."""
-    from localpbo_core.loop import episode_seed
     from localpbo_core.problems import make_problem
+    from localpbo_core.seeds import episode_seed
 
     problem = make_problem("swimmer", **SMALL_TASK)
     failures = Counter()
 
-    def evaluate(config, cid, theta01):
+    def evaluate(config, cid, native):
         if cid == 3 and failures[cid] < fail_times:
             failures[cid] += 1
             raise RuntimeError("physics blew up")
-        return problem.evaluate(theta01, seed=episode_seed(config.seed, cid))
+        return problem.evaluate_native(native, seed=episode_seed(config.seed, cid))
 
     return evaluate, failures
 
@@ -240,7 +240,8 @@ def test_failing_simulator_retry_then_complete(tmp_path) -> None:
     assert verify(tmp_path / "r.mcap").ok
     # same outcomes as a run whose simulator never failed
     clean = run_suite({**SETTINGS, "budget": 8}, tmp_path / "c.mcap", timeout_s=60)
-    assert clean.best_id == summary.best_id and clean.best_theta == summary.best_theta
+    assert clean.incumbent_id == summary.incumbent_id
+    assert clean.incumbent_theta == summary.incumbent_theta
 
 
 def test_failing_simulator_stop_policy(tmp_path) -> None:

@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from localpbo_ros.driver import make_run_config
 from localpbo_ros.optimizer_node import OptimizerNode
-from localpbo_ros.oracle_node import OracleNode, duel_seed
+from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.sim_node import SimNode
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from localpbo_core.loop import episode_seed
 from localpbo_core.optimizers import Outcome, make_optimizer
 from localpbo_core.problems import PreferenceOracle, make_problem
+from localpbo_core.seeds import duel_seed, episode_seed
 from localpbo_msgs_py import (
     CandidateMsg,
     DuelOutcome,
@@ -32,6 +31,7 @@ from localpbo_msgs_py.topics import (
     STATUS,
 )
 
+from .configs import run_config
 from .conftest import SMALL_TASK
 
 OPT = {
@@ -45,7 +45,7 @@ OPT = {
 
 
 def cfg():
-    return make_run_config(
+    return run_config(
         run_id="t1",
         algorithm="sobol",
         task="swimmer",
@@ -74,11 +74,11 @@ def test_sim_node_evaluates_by_id_and_drops_bad_input(ros) -> None:
     calls = []
     problem = make_problem("swimmer", **SMALL_TASK)
 
-    def evaluator(c, cid, theta01):
+    def evaluator(c, cid, native):
         calls.append(cid)
         if cid == 3:
             raise RuntimeError("simulator exploded")
-        return problem.evaluate(theta01, seed=episode_seed(c.seed, cid))
+        return problem.evaluate_native(native, seed=episode_seed(c.seed, cid))
 
     sim = ros.add(SimNode(context=ros.ctx, evaluator=evaluator))
     results = ros.collect(EPISODE_RESULT)
@@ -98,7 +98,7 @@ def test_sim_node_evaluates_by_id_and_drops_bad_input(ros) -> None:
     for cid in range(3):
         ref = problem.evaluate(thetas[cid], seed=episode_seed(4, cid))
         assert got[cid].status is EpisodeStatus.OK
-        assert abs(got[cid].episode_return - ref) < 1e-9 * max(1.0, abs(ref))
+        assert got[cid].episode_return == ref  # θ evaluated exactly as the optimizer proposed
     assert got[3].status is EpisodeStatus.FAILED and "exploded" in got[3].error
     assert sorted(calls) == [0, 1, 2, 3]
     # hostile candidates: wrong run, wrong length, NaN, out of box, huge, bad label
@@ -143,7 +143,7 @@ def test_oracle_node_matches_by_id_and_uses_reference_oracle(ros) -> None:
     problem = make_problem("swimmer", **SMALL_TASK)
     decoded = {o.duel_id: o for o in decode_all(DuelOutcome, outs)}
     for r in reqs:
-        ref = PreferenceOracle(problem, 0.1, seed=duel_seed(4, r.duel_id))
+        ref = PreferenceOracle(problem, 0.1, seed=duel_seed(4, r.duel_id))  # one duel
         first_wins = ref.compare(values[r.first_id], values[r.second_id])
         assert decoded[r.duel_id].winner_id == (r.first_id if first_wins else r.second_id)
     # repeated request: same answer again; conflicting request and result: dropped
@@ -219,7 +219,7 @@ def test_optimizer_node_against_scripted_oracle_and_hostile_outcomes(ros) -> Non
     incumbents = ros.collect(INCUMBENT)
     cands = _scripted_peer(ros, answer)
     assert ros.spin_until(lambda: bool(held), 20)
-    history = opt.driver.optimizer.history
+    history = opt.driver.session.optimizer.history
     r = held[0]
     good = judge(r, cands)
     for msg in hostile_messages(r, good.winner_id, opt.driver.accepted):
@@ -231,7 +231,7 @@ def test_optimizer_node_against_scripted_oracle_and_hostile_outcomes(ros) -> Non
         ),
         10,
     )
-    assert opt.driver.optimizer.history == history  # state unchanged by bad input
+    assert opt.driver.session.optimizer.history == history  # state unchanged by bad input
     assert opt.driver.pending_requests() == (r,)
     ros.publish(DUEL_OUTCOME, good.encode())
     assert ros.spin_until(lambda: opt.finished, 20)
@@ -346,7 +346,7 @@ def test_optimizer_silent_peer_times_out(ros) -> None:
 
 def test_followers_switch_to_a_new_run_or_stick_to_their_run_id(ros) -> None:
     config_a = cfg()
-    config_b = make_run_config(
+    config_b = run_config(
         run_id="t2", algorithm="sobol", task="swimmer", seed=9, budget=8, task_options=SMALL_TASK
     )
     free = ros.add(SimNode(context=ros.ctx, evaluator=lambda c, cid, th: float(c.seed)))
@@ -354,7 +354,7 @@ def test_followers_switch_to_a_new_run_or_stick_to_their_run_id(ros) -> None:
     results = ros.collect(EPISODE_RESULT)
     ros.publish(RUN_CONFIG, config_a.encode())
     assert ros.spin_until(lambda: free.run_id == "t1" and pinned.run_id == "t1", 5)
-    conflicting = make_run_config(
+    conflicting = run_config(
         run_id="t1", algorithm="sobol", task="swimmer", seed=5, budget=8, task_options=SMALL_TASK
     )
     ros.publish(RUN_CONFIG, conflicting.encode())

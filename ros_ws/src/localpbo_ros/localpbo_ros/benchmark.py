@@ -5,7 +5,7 @@ Prints figures; asserts nothing. For each task (``hartmann6``: a cheap function,
 transport cost is visible; ``swimmer``: the small MuJoCo task) the same optimizer, task and
 seed run three ways:
 
-* in-process: ``localpbo_core.loop.run_loop`` (the reference loop). Its reporting call
+* in-process: ``localpbo_core.loop.run_session`` (the reference loop). Its reporting call
   ``true_value`` (5 extra episodes per candidate on MuJoCo tasks) is replaced by a constant so
   both sides do the same work: one episode per candidate, one comparison per duel;
 * ROS, no recorder: optimizer, simulator and oracle nodes in one process over topics;
@@ -29,9 +29,10 @@ from typing import Any
 import numpy as np
 from mcap.reader import make_reader
 
-from localpbo_core.loop import run_loop
-from localpbo_core.optimizers import make_optimizer
-from localpbo_core.problems import PreferenceOracle, make_problem
+from localpbo_core.loop import run_session
+from localpbo_core.problems import make_problem
+from localpbo_core.session import Session
+from localpbo_core.settings import RunSettings
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_ros.suite import run_suite
 
@@ -49,19 +50,21 @@ class _NoReporting:
     def evaluate(self, theta: np.ndarray, seed: int) -> float:
         return self._p.evaluate(theta, seed)
 
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
+        return self._p.evaluate_native(x, seed)
+
     def true_value(self, theta: np.ndarray) -> float:
         return 0.0
 
 
 def in_process(task: str, algorithm: str, budget: int, seed: int) -> tuple[float, float, int]:
     """(wall seconds, process CPU seconds, duels) of the in-process loop."""
-    problem = make_problem(task)
-    optimizer = make_optimizer(algorithm, problem.dim, seed=seed, budget=budget)
-    oracle = PreferenceOracle(problem, 0.1, seed=seed)
+    settings = RunSettings(algorithm=algorithm, problem=task, seed=seed, budget=budget)
+    session = Session(settings, _NoReporting(make_problem(task)))
     start, cpu = time.perf_counter(), time.process_time()
-    run_loop(_NoReporting(problem), optimizer, oracle, seed)
+    run_session(session)
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
-    return wall, cpu, len(optimizer.history.outcomes)
+    return wall, cpu, session.n_duels
 
 
 def over_ros(task: str, algorithm: str, budget: int, seed: int, bag: Path | None) -> Any:

@@ -2,7 +2,8 @@
 
 Hook into an argparse CLI with :func:`add_subcommands`; each subcommand sets ``func`` (call
 ``args.func(args)``, which returns the exit code). Standalone: ``python -m
-localpbo_ros.commands run ...``.
+localpbo_ros.commands run ...``. Building the parsers imports no ROS module (``localpbo
+bench --help`` stays free of rclpy); each command imports what it needs when it runs.
 """
 
 from __future__ import annotations
@@ -15,7 +16,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from localpbo_ros.params import ParameterError
+from localpbo_core.settings import (
+    DEFAULT_ALGORITHM,
+    DEFAULT_INITIAL_DESIGN,
+    DEFAULT_NOISE_FRACTION,
+    DEFAULT_PROBLEM,
+)
 
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -32,31 +38,31 @@ def _json_object(text: str) -> str:
 
 def add_subcommands(subparsers: Any) -> None:
     """Add ``run``, ``replay`` and ``bag-info`` to an argparse subparsers object."""
-    from localpbo_ros.suite import DEFAULTS
-
     run = subparsers.add_parser(
         "run",
         help="tuning run over ROS topics (optimizer, simulator, oracle, recorder in-process)",
         description="Bring up optimizer, simulator and oracle nodes plus the MCAP recorder in "
         "one process (private context; nothing leaves the process) and tune until the budget "
-        f"is spent. Default: {DEFAULTS['algorithm']} on {DEFAULTS['task']}, budget "
-        f"{DEFAULTS['budget']}. Prints a summary: recommended candidate, incumbent, duels, "
+        f"is spent. Default: {DEFAULT_ALGORITHM} on {DEFAULT_PROBLEM}, budget initial design "
+        "+ 10 d (162 on Swimmer). Prints a summary: recommended candidate, incumbent, duels, "
         "bag path.",
     )
-    run.add_argument("--task", default=DEFAULTS["task"], help="task, e.g. swimmer, hopper")
-    run.add_argument("--algorithm", default=DEFAULTS["algorithm"], help="e.g. turpbo, sobol")
+    run.add_argument("--task", default=DEFAULT_PROBLEM, help="task, e.g. swimmer, hopper")
+    run.add_argument("--algorithm", default=DEFAULT_ALGORITHM, help="e.g. turpbo, sobol")
     run.add_argument(
         "--budget",
         type=int,
-        default=DEFAULTS["budget"],
-        help="evaluations incl. the initial design (0 = algorithm default)",
+        default=0,
+        help="evaluations incl. the initial design (0 = initial design + 10 d)",
     )
-    run.add_argument("--seed", type=int, default=DEFAULTS["seed"], help="run seed")
-    run.add_argument("--initial-design", type=int, default=2, help="initial random points")
+    run.add_argument("--seed", type=int, default=0, help="run seed")
+    run.add_argument(
+        "--initial-design", type=int, default=DEFAULT_INITIAL_DESIGN, help="initial random points"
+    )
     run.add_argument(
         "--noise",
         type=float,
-        default=0.1,
+        default=DEFAULT_NOISE_FRACTION,
         help="oracle noise std as a fraction of the task's value range",
     )
     run.add_argument("--algorithm-options", type=_json_object, default="{}", metavar="JSON")
@@ -124,6 +130,7 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_run(args: argparse.Namespace) -> int:
     """``localpbo run``."""
     from localpbo_ros.bagtools import load_run
+    from localpbo_ros.params import ParameterError
     from localpbo_ros.suite import default_bag, run_suite
 
     settings = run_settings(args)

@@ -1,134 +1,139 @@
-"""The bookkeeping between suite messages and one ask/tell optimizer (DESIGN.md §3–4).
+"""The adapter between suite messages and the run protocol (:mod:`localpbo_core.session`).
 
 No ROS here: the optimizer node, ``replay --verify`` and ``run --resume`` all use
-:class:`Driver`, so the node, the offline verification and the resume rebuild cannot disagree.
+:class:`Driver`, whose acceptance rule is the session's (:meth:`Session.offer`), so the node,
+the offline verification, the resume rebuild and ``localpbo bench`` cannot disagree.
 
-* Candidate ids are the optimizer's ids; duel ids are the index of the duel in the optimizer's
-  history (0, 1, 2, ... in ask order), so a rebuilt optimizer reissues the same ids.
-* θ leaves the driver in task units (``problem.to_native``, DESIGN.md §4).
-* :meth:`Driver.offer` validates a decoded :class:`DuelOutcome` against the pending duels
-  *before* calling ``tell``; anything that does not answer a pending duel is refused with a
-  counter name and the optimizer's state is unchanged.
+* The run config (:class:`~localpbo_msgs_py.RunConfig`, the latched message that makes a bag
+  self-describing) maps one to one onto :class:`~localpbo_core.settings.RunSettings`
+  (:func:`settings_of`, :func:`make_run_config`).
+* θ leaves the driver in task units (``problem.to_native``), exactly the numbers the session
+  evaluates in-process.
+* :meth:`Driver.offer` turns a decoded :class:`DuelOutcome` into an :class:`Answer` and
+  returns the session's :class:`Verdict`; answers of another run get ``Reason.WRONG_RUN``.
 
-Run-config ``options`` layout (the bag alone says how the run was made)::
+Run-config ``options`` layout::
 
-    {"optimizer": {<make_optimizer keyword options, e.g. initial_design, batch_size>},
-     "task": {<make_problem keyword options, e.g. episode_steps, value_range>},
+    {"optimizer": {<algorithm options>, "initial_design": int},
+     "task": {<problem options, e.g. episode_steps, value_range>},
      "oracle": {"noise_fraction": float},
      "failure": {"policy": "retry" | "stop", "max_retries": int}}
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from localpbo_core.optimizers import Duel, InvalidOutcome, Outcome, make_optimizer
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
-from localpbo_core.optimizers.recommendation import recommend
-from localpbo_core.problems import Problem, make_problem
-from localpbo_msgs_py import CandidateMsg, DuelOutcome, DuelRequest, Incumbent, RunConfig
+from localpbo_core.optimizers.base import Candidate
+from localpbo_core.problems import Problem
+from localpbo_core.session import Answer, DuelRequest, Reason, Session, Verdict
+from localpbo_core.settings import (
+    DEFAULT_INITIAL_DESIGN,
+    DEFAULT_NOISE_FRACTION,
+    RunSettings,
+    SettingError,
+)
+from localpbo_msgs_py import CandidateMsg, DuelOutcome, Incumbent, RunConfig
+from localpbo_msgs_py import DuelRequest as DuelRequestMsg
 from localpbo_msgs_py.records import OutcomeKind
 
 OPTION_SECTIONS = ("optimizer", "task", "oracle", "failure")
 FAILURE_POLICIES = ("retry", "stop")
-
-
-def build_problem(task: str, task_options: Mapping[str, Any]) -> Problem:
-    """The problem named ``task`` with its keyword options (``make_problem``)."""
-    return make_problem(task, **dict(task_options))
-
-
-def task_box(problem: Problem) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """θ box in task units: ``to_native`` of the unit cube's corners.
-
-    Raises ValueError when ``to_native`` is not affine per coordinate (the simulator inverts
-    it as ``(native - lower) / (upper - lower)``).
-    """
-    lo = np.asarray(problem.to_native(np.zeros(problem.dim)), dtype=np.float64)
-    hi = np.asarray(problem.to_native(np.ones(problem.dim)), dtype=np.float64)
-    mid = np.asarray(problem.to_native(np.full(problem.dim, 0.5)), dtype=np.float64)
-    if not np.allclose(mid, 0.5 * (lo + hi), rtol=1e-9, atol=1e-12) or np.any(hi <= lo):
-        raise ValueError(f"task: {problem.name} maps theta to native units non-affinely")
-    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
-
-
-def make_run_config(
-    *,
-    run_id: str,
-    algorithm: str,
-    task: str,
-    seed: int,
-    budget: int | None = None,
-    optimizer_options: Mapping[str, Any] | None = None,
-    task_options: Mapping[str, Any] | None = None,
-    noise_fraction: float = 0.1,
-    failure_policy: str = "retry",
-    max_retries: int = 2,
-) -> RunConfig:
-    """Validate every setting by building the problem and the optimizer once.
-
-    Raises:
-        ValueError: naming the offending setting (unknown algorithm/task/option, bad budget,
-            noise fraction, failure policy).
-    """
-    if failure_policy not in FAILURE_POLICIES:
-        raise ValueError(f"failure_policy: {failure_policy!r} is not one of {FAILURE_POLICIES}")
-    if isinstance(max_retries, bool) or not isinstance(max_retries, int) or max_retries < 0:
-        raise ValueError(f"max_retries: must be an integer >= 0, got {max_retries!r}")
-    if not (isinstance(noise_fraction, int | float) and np.isfinite(noise_fraction)):
-        raise ValueError(f"noise_fraction: must be a finite number, got {noise_fraction!r}")
-    if noise_fraction < 0:
-        raise ValueError(f"noise_fraction: must be >= 0, got {noise_fraction!r}")
-    opt_options = dict(optimizer_options or {})
-    problem = build_problem(task, task_options or {})
-    value_range = float(problem.value_range)
-    if noise_fraction > 0 and not (np.isfinite(value_range) and value_range > 0):
-        raise ValueError(
-            f"noise_fraction: task {task!r} with these options has no value range "
-            f"({value_range}); pass task option value_range or noise_fraction 0"
-        )
-    optimizer = make_optimizer(algorithm, problem.dim, seed=seed, budget=budget, **opt_options)
-    lower, upper = task_box(problem)
-    options = {
-        "optimizer": opt_options,
-        "task": dict(task_options or {}),
-        "oracle": {"noise_fraction": float(noise_fraction)},
-        "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
-    }
-    return RunConfig(
-        run_id,
-        algorithm.lower(),
-        task,
-        problem.dim,
-        lower,
-        upper,
-        int(seed),
-        optimizer.budget,
-        options,
-    )
+DEFAULT_FAILURE_POLICY = "retry"
+DEFAULT_MAX_RETRIES = 2
 
 
 def section(config: RunConfig, name: str) -> dict[str, Any]:
     """One section of the run config's options (empty when absent)."""
     value = config.options.get(name, {})
     if not isinstance(value, dict):
-        raise ValueError(f"options.{name}: must be a JSON object, got {type(value).__name__}")
+        raise SettingError(f"options.{name}", f"must be a JSON object, got {type(value).__name__}")
     return dict(value)
 
 
-def build_optimizer(config: RunConfig) -> PreferenceOptimizer:
-    """A fresh optimizer exactly as the run config describes it."""
-    return make_optimizer(
-        config.algorithm,
-        config.dim,
+def settings_of(config: RunConfig) -> RunSettings:
+    """The run settings a run config describes."""
+    optimizer = section(config, "optimizer")
+    initial = optimizer.pop("initial_design", DEFAULT_INITIAL_DESIGN)
+    return RunSettings(
+        algorithm=config.algorithm,
+        problem=config.task,
         seed=config.seed,
         budget=config.budget,
-        **section(config, "optimizer"),
+        initial_design=initial,
+        noise_fraction=section(config, "oracle").get("noise_fraction", DEFAULT_NOISE_FRACTION),
+        optimizer_options=optimizer,
+        problem_options=section(config, "task"),
     )
+
+
+def task_box(problem: Problem) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """θ box in task units: ``to_native`` of the unit cube's corners.
+
+    Raises:
+        SettingError: ``to_native`` is not affine per coordinate (the box would not describe
+            the map).
+    """
+    lo = np.asarray(problem.to_native(np.zeros(problem.dim)), dtype=np.float64)
+    hi = np.asarray(problem.to_native(np.ones(problem.dim)), dtype=np.float64)
+    mid = np.asarray(problem.to_native(np.full(problem.dim, 0.5)), dtype=np.float64)
+    if not np.allclose(mid, 0.5 * (lo + hi), rtol=1e-9, atol=1e-12) or np.any(hi <= lo):
+        raise SettingError("problem", f"{problem.name} maps theta to native units non-affinely")
+    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+
+
+def make_run_config(
+    run_id: str,
+    settings: RunSettings,
+    *,
+    failure_policy: str = DEFAULT_FAILURE_POLICY,
+    max_retries: int = DEFAULT_MAX_RETRIES,
+    session: Session | None = None,
+) -> RunConfig:
+    """The run config of ``settings``, validated by building the run once.
+
+    Raises:
+        SettingError: naming the refused setting (``failure_policy``, ``max_retries`` or a
+            field of :class:`RunSettings`).
+    """
+    if failure_policy not in FAILURE_POLICIES:
+        raise SettingError("failure_policy", f"{failure_policy!r} is not one of {FAILURE_POLICIES}")
+    if isinstance(max_retries, bool) or not isinstance(max_retries, int) or max_retries < 0:
+        raise SettingError("max_retries", f"must be an integer >= 0, got {max_retries!r}")
+    session = session or Session(settings)
+    lower, upper = task_box(session.problem)
+    options = {
+        "optimizer": {**settings.optimizer_options, "initial_design": settings.initial_design},
+        "task": dict(settings.problem_options),
+        "oracle": {"noise_fraction": settings.noise_fraction},
+        "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
+    }
+    return RunConfig(
+        run_id,
+        settings.algorithm,
+        settings.problem,
+        session.problem.dim,
+        lower,
+        upper,
+        settings.seed,
+        session.budget,
+        options,
+    )
+
+
+def answer_of(outcome: DuelOutcome) -> Answer:
+    """The core answer a decoded outcome message carries."""
+    duel = DuelRequest(outcome.duel_id, outcome.first_id, outcome.second_id)
+    if outcome.kind is OutcomeKind.DECISIVE:
+        assert outcome.winner_id is not None
+        return Answer.decisive(duel, outcome.winner_id)
+    if outcome.kind is OutcomeKind.INDIFFERENT:
+        return Answer.indifferent(duel)
+    return Answer.failed(duel, outcome.reason)
 
 
 @dataclass(frozen=True)
@@ -136,43 +141,28 @@ class Work:
     """What to publish after an ask: new candidates (task units) and duel requests."""
 
     candidates: tuple[CandidateMsg, ...]
-    requests: tuple[DuelRequest, ...]
+    requests: tuple[DuelRequestMsg, ...]
 
 
-@dataclass(frozen=True)
-class Verdict:
-    """Result of :meth:`Driver.offer`.
+class Driver:
+    """One run's session, speaking suite messages (see module docstring).
 
-    ``accepted``: the outcome was told to the optimizer. Otherwise ``reason`` is a counter
-    name: ``failed`` for a failed duel (the caller applies its failure policy), ``duplicate``
-    for an exact copy of an accepted outcome (benign: the oracle answered a re-published
-    request), anything else a dropped message (``wrong_run``, ``unknown_duel``,
-    ``repeated`` — a different answer to an answered duel —, ``mismatched_duel``,
-    ``unsupported_kind``, ``rejected``).
+    Args:
+        config: the run config (validated by building the session).
+        problem: an already built problem of the config's task (else built here).
+
+    Attributes:
+        accepted: every accepted outcome message, in acceptance order.
     """
 
-    accepted: bool
-    reason: str = ""
-    detail: str = ""
-
-
-@dataclass
-class Driver:
-    """One run's optimizer plus duel-id bookkeeping (see module docstring)."""
-
-    config: RunConfig
-    problem: Problem | None = None
-    optimizer: PreferenceOptimizer = field(init=False)
-    accepted: list[DuelOutcome] = field(init=False, default_factory=list)
-    _pending: dict[int, Duel] = field(init=False, default_factory=dict)
-    _by_duel: dict[int, DuelOutcome] = field(init=False, default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if self.problem is None:
-            self.problem = build_problem(self.config.task, section(self.config, "task"))
-        if self.problem.dim != self.config.dim:
-            raise ValueError(f"dim: run config says {self.config.dim}, task has {self.problem.dim}")
-        self.optimizer = build_optimizer(self.config)
+    def __init__(self, config: RunConfig, problem: Problem | None = None) -> None:
+        self.config = config
+        self.session = Session(settings_of(config), problem)
+        self.accepted: list[DuelOutcome] = []
+        if self.session.problem.dim != config.dim:
+            raise SettingError(
+                "dim", f"run config says {config.dim}, task has {self.session.problem.dim}"
+            )
 
     # ------------------------------------------------------------------ state
     @property
@@ -183,98 +173,62 @@ class Driver:
     @property
     def done(self) -> bool:
         """Budget spent and every duel answered."""
-        return self.optimizer.done
+        return self.session.done
 
     @property
     def step_open(self) -> bool:
         """Duels of the current ask are still unanswered."""
-        return bool(self._pending)
+        return self.session.step_open
 
     @property
     def n_duels(self) -> int:
-        """Accepted (decisive) duel outcomes so far."""
-        return len(self.accepted)
+        """Accepted (decisive) answers so far."""
+        return self.session.n_duels
 
-    def native(self, theta01: np.ndarray) -> tuple[float, ...]:
-        """θ in task units."""
-        assert self.problem is not None
-        return tuple(float(v) for v in np.asarray(self.problem.to_native(theta01)).reshape(-1))
+    def candidate_msg(self, candidate: Candidate) -> CandidateMsg:
+        """The candidate message (task units) of a proposed candidate."""
+        native = tuple(float(v) for v in self.session.native(candidate.theta))
+        return CandidateMsg(self.run_id, candidate.id, native)
 
-    def candidate_msg(self, candidate_id: int) -> CandidateMsg:
-        """The candidate message of an already proposed id."""
-        cand = self.optimizer.history.candidates[candidate_id]
-        return CandidateMsg(self.run_id, cand.id, self.native(cand.theta))
-
-    def pending_requests(self) -> tuple[DuelRequest, ...]:
+    def pending_requests(self) -> tuple[DuelRequestMsg, ...]:
         """Requests of the duels still pending, by duel id."""
         return tuple(
-            DuelRequest(self.run_id, did, d.first, d.second)
-            for did, d in sorted(self._pending.items())
+            DuelRequestMsg(self.run_id, d.duel_id, d.first, d.second)
+            for d in self.session.pending()
         )
 
     def pending_candidates(self) -> tuple[CandidateMsg, ...]:
         """Every candidate a pending duel refers to (new and earlier ones), by id."""
-        ids = sorted({cid for d in self._pending.values() for cid in (d.first, d.second)})
-        return tuple(self.candidate_msg(cid) for cid in ids)
+        return tuple(self.candidate_msg(c) for c in self.session.pending_candidates())
 
     def incumbent(self) -> Incumbent | None:
-        """The preference-defined best so far, in task units."""
-        inc = self.optimizer.incumbent
+        """The preference-defined best so far (king of the hill), in task units."""
+        inc = self.session.incumbent
         if inc is None:
             return None
-        return Incumbent(self.run_id, inc.id, self.native(inc.theta), self.n_duels)
+        msg = self.candidate_msg(inc)
+        return Incumbent(self.run_id, inc.id, msg.theta, self.n_duels)
 
-    def recommendation(self) -> Incumbent | None:
+    def recommendation(self) -> CandidateMsg | None:
         """The candidate to hand to the user: the highest posterior mean utility given every
-        duel so far (:func:`localpbo_core.optimizers.recommendation.recommend`), task units."""
-        rec = recommend(self.optimizer)
-        if rec is None:
-            return None
-        return Incumbent(self.run_id, rec.id, self.native(rec.theta), self.n_duels)
+        duel so far (:meth:`Session.recommendation`), in task units."""
+        rec = self.session.recommendation()
+        return None if rec is None else self.candidate_msg(rec)
 
     # ------------------------------------------------------------------ ask / offer
     def ask(self) -> Work:
-        """Ask the optimizer for the next work (call only when no step is open)."""
-        if self._pending:
-            raise RuntimeError("ask: duels of the previous ask are still pending")
-        first_id = len(self.optimizer.history.duels)
-        ask = self.optimizer.ask()
-        self._pending = {first_id + i: d for i, d in enumerate(ask.duels)}
-        cands = tuple(CandidateMsg(self.run_id, c.id, self.native(c.theta)) for c in ask.candidates)
-        return Work(cands, self.pending_requests())
+        """Ask for the next work (call only when no step is open and the run is not done)."""
+        step = self.session.ask()
+        return Work(tuple(self.candidate_msg(c) for c in step.candidates), self.pending_requests())
 
     def offer(self, outcome: DuelOutcome) -> Verdict:
-        """Tell ``outcome`` to the optimizer if it answers a pending duel; never raises."""
+        """Offer ``outcome`` to the session (never raises)."""
         if outcome.run_id != self.run_id:
-            return Verdict(False, "wrong_run", f"run {outcome.run_id!r}")
-        duel = self._pending.get(outcome.duel_id)
-        if duel is None:
-            issued = len(self.optimizer.history.duels)
-            if self._by_duel.get(outcome.duel_id) == outcome:
-                return Verdict(False, "duplicate", f"duel {outcome.duel_id} answered again")
-            if outcome.duel_id < issued:
-                return Verdict(False, "repeated", f"duel {outcome.duel_id} is already answered")
-            return Verdict(False, "unknown_duel", f"duel {outcome.duel_id} was never asked")
-        if (outcome.first_id, outcome.second_id) != (duel.first, duel.second):
-            return Verdict(
-                False,
-                "mismatched_duel",
-                f"duel {outcome.duel_id} is {duel.first} vs {duel.second}, message says "
-                f"{outcome.first_id} vs {outcome.second_id}",
-            )
-        if outcome.kind is OutcomeKind.FAILED:
-            return Verdict(False, "failed", outcome.reason)
-        if outcome.kind is not OutcomeKind.DECISIVE:
-            return Verdict(False, "unsupported_kind", f"{outcome.kind} outcomes are not supported")
-        assert outcome.winner_id is not None and outcome.loser_id is not None
-        try:
-            self.optimizer.tell([Outcome(outcome.winner_id, outcome.loser_id)])
-        except InvalidOutcome as exc:
-            return Verdict(False, "rejected", str(exc))
-        del self._pending[outcome.duel_id]
-        self.accepted.append(outcome)
-        self._by_duel[outcome.duel_id] = outcome
-        return Verdict(True)
+            return Verdict(Reason.WRONG_RUN, f"run {outcome.run_id!r}")
+        verdict = self.session.offer(answer_of(outcome))
+        if verdict.accepted:
+            self.accepted.append(outcome)
+        return verdict
 
 
 @dataclass(frozen=True)
@@ -287,11 +241,11 @@ class Rebuild:
 
 
 def rebuild(config: RunConfig, outcomes: Iterable[DuelOutcome]) -> Rebuild:
-    """Re-feed recorded outcomes in order (DESIGN.md §3: same config + outcomes ⇒ same state).
+    """Re-feed recorded outcomes in order (same config + outcomes ⇒ same state).
 
     Uses the node's own acceptance rule (:meth:`Driver.offer`), so the outcomes accepted here
-    are the ones the recorded optimizer node accepted. Outcomes that do not answer a pending
-    duel are counted in ``refused``.
+    are the ones the recorded optimizer node accepted. Outcomes that are not accepted
+    (failed duels, duplicates, other runs, ...) are counted in ``refused``.
     """
     driver = Driver(config)
     proposed: list[CandidateMsg] = []
@@ -301,8 +255,7 @@ def rebuild(config: RunConfig, outcomes: Iterable[DuelOutcome]) -> Rebuild:
     for out in outcomes:
         if driver.done:
             break
-        verdict = driver.offer(out)
-        if not verdict.accepted:
+        if not driver.offer(out).accepted:
             refused += 1
             continue
         if not driver.step_open and not driver.done:

@@ -29,22 +29,45 @@ from rclpy.context import Context
 
 from localpbo_core.optimizers import available_optimizers
 from localpbo_core.problems import available_problems
+from localpbo_core.session import Reason
+from localpbo_core.settings import (
+    DEFAULT_ALGORITHM,
+    DEFAULT_INITIAL_DESIGN,
+    DEFAULT_NOISE_FRACTION,
+    DEFAULT_PROBLEM,
+    RunSettings,
+    SettingError,
+)
 from localpbo_msgs_py import DecodeError, DuelOutcome, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, INCUMBENT, RUN_CONFIG
 from localpbo_ros.base import SuiteNode
-from localpbo_ros.driver import FAILURE_POLICIES, Driver, make_run_config, rebuild
+from localpbo_ros.driver import (
+    DEFAULT_FAILURE_POLICY,
+    DEFAULT_MAX_RETRIES,
+    FAILURE_POLICIES,
+    Driver,
+    make_run_config,
+    rebuild,
+    settings_of,
+)
 from localpbo_ros.params import INT_MAX, Param, ParameterError
+from localpbo_ros.summary import RunSummary
 
 PARAMS = [
     Param("run_id", "localpbo", "Run id stamped on every message ([A-Za-z0-9][A-Za-z0-9_.-]*)."),
-    Param("algorithm", "turpbo", "Preference optimizer.", choices=tuple(available_optimizers())),
+    Param(
+        "algorithm",
+        DEFAULT_ALGORITHM,
+        "Preference optimizer.",
+        choices=tuple(available_optimizers()),
+    ),
     Param(
         "algorithm_options",
         "{}",
         'Algorithm options as a JSON object, e.g. {"batch_size": 2}.',
         json_object=True,
     ),
-    Param("task", "swimmer", "Task (problem) to tune.", choices=tuple(available_problems())),
+    Param("task", DEFAULT_PROBLEM, "Task (problem) to tune.", choices=tuple(available_problems())),
     Param(
         "task_options",
         "{}",
@@ -59,21 +82,35 @@ PARAMS = [
     ),
     Param(
         "initial_design",
-        2,
+        DEFAULT_INITIAL_DESIGN,
         "Shared random initial points (paper App. D.1).",
         int_range=(2, 100_000),
     ),
     Param("seed", 0, "Run seed (optimizer, episode seeds, oracle noise).", int_range=(0, INT_MAX)),
     Param(
         "noise_fraction",
-        0.1,
+        DEFAULT_NOISE_FRACTION,
         "Oracle noise std as a fraction of the task's value range.",
         float_range=(0.0, 10.0),
     ),
     Param(
-        "failure_policy", "retry", "What a failed or timed-out duel does.", choices=FAILURE_POLICIES
+        "failure_policy",
+        DEFAULT_FAILURE_POLICY,
+        "What a failed or timed-out duel does.",
+        choices=FAILURE_POLICIES,
     ),
-    Param("max_retries", 2, "Retries per duel under failure_policy=retry.", int_range=(0, 100)),
+    Param(
+        "max_retries",
+        DEFAULT_MAX_RETRIES,
+        "Retries per duel under failure_policy=retry.",
+        int_range=(0, 100),
+    ),
+    Param(
+        "progress_every",
+        10,
+        "Log progress at INFO every this many accepted duels (0 = never).",
+        int_range=(0, 1_000_000),
+    ),
     Param(
         "duel_timeout_s",
         120.0,
@@ -97,66 +134,65 @@ PARAMS = [
 TICK_S = 0.05
 """Period of the start / timeout / re-publish check."""
 
-_FIELD_TO_PARAM = {
+PARAMETER_OF_SETTING = {
     "algorithm": "algorithm",
     "problem": "task",
-    "task": "task",
+    "seed": "seed",
     "budget": "budget",
     "initial_design": "initial_design",
-    "seed": "seed",
     "noise_fraction": "noise_fraction",
-    "value_range": "task_options",
+    "optimizer_options": "algorithm_options",
+    "problem_options": "task_options",
+    "failure_policy": "failure_policy",
+    "max_retries": "max_retries",
     "run_id": "run_id",
 }
+"""The ROS parameter that sets each run setting (``SettingError.field`` up to its first dot)."""
 
 
 def config_from_settings(s: dict[str, Any]) -> RunConfig:
     """The run config the parameters describe; ParameterError names the bad parameter."""
-    opt = dict(s["algorithm_options"])
-    if "initial_design" in opt:
-        raise ParameterError("algorithm_options", "set initial_design with its own parameter")
-    opt["initial_design"] = s["initial_design"]
     try:
-        return make_run_config(
-            run_id=s["run_id"],
+        settings = RunSettings(
             algorithm=s["algorithm"],
-            task=s["task"],
+            problem=s["task"],
             seed=s["seed"],
             budget=s["budget"] or None,
-            optimizer_options=opt,
-            task_options=s["task_options"],
+            initial_design=s["initial_design"],
             noise_fraction=s["noise_fraction"],
+            optimizer_options=s["algorithm_options"],
+            problem_options=s["task_options"],
+        )
+        return make_run_config(
+            s["run_id"],
+            settings,
             failure_policy=s["failure_policy"],
             max_retries=s["max_retries"],
         )
-    except (ValueError, TypeError) as exc:
-        field = str(exc).split(":", 1)[0].strip()
-        if field in _FIELD_TO_PARAM:
-            name = _FIELD_TO_PARAM[field]
-        elif field in s["task_options"]:
-            name = "task_options"
-        else:
-            name = "algorithm_options"
-        raise ParameterError(name, str(exc)) from None
+    except SettingError as exc:
+        name = PARAMETER_OF_SETTING.get(exc.field.split(".", 1)[0], "algorithm_options")
+        raise ParameterError(name, f"{exc.field}: {exc.reason}") from None
+    except ValueError as exc:  # the run config codec refuses a field (e.g. the run id)
+        field = getattr(exc, "field", "")
+        raise ParameterError(PARAMETER_OF_SETTING.get(field, "run_id"), str(exc)) from None
 
 
 def settings_from_config(config: RunConfig) -> dict[str, Any]:
     """Parameter values that reproduce ``config`` (used by ``run --resume``)."""
-    opt = dict(config.options.get("optimizer", {}))
-    initial = int(opt.pop("initial_design", 2))
+    settings = settings_of(config)
     failure = config.options.get("failure", {})
     return {
         "run_id": config.run_id,
-        "algorithm": config.algorithm,
-        "algorithm_options": json.dumps(opt),
-        "task": config.task,
-        "task_options": json.dumps(config.options.get("task", {})),
+        "algorithm": settings.algorithm,
+        "algorithm_options": json.dumps(dict(settings.optimizer_options)),
+        "task": settings.problem,
+        "task_options": json.dumps(dict(settings.problem_options)),
         "budget": config.budget,
-        "initial_design": initial,
-        "seed": config.seed,
-        "noise_fraction": float(config.options.get("oracle", {}).get("noise_fraction", 0.1)),
-        "failure_policy": failure.get("policy", "retry"),
-        "max_retries": int(failure.get("max_retries", 2)),
+        "initial_design": settings.initial_design,
+        "seed": settings.seed,
+        "noise_fraction": float(settings.noise_fraction),
+        "failure_policy": failure.get("policy", DEFAULT_FAILURE_POLICY),
+        "max_retries": int(failure.get("max_retries", DEFAULT_MAX_RETRIES)),
     }
 
 
@@ -280,20 +316,27 @@ class OptimizerNode(SuiteNode):
             self.drop(reason, str(decoded))
             return
         if self.finished or not self._started:
-            self.drop("not_running", f"duel {decoded.duel_id} arrived while {self.state}")
+            detail = f"duel {decoded.duel_id} arrived while {self.state}"
+            self.drop(Reason.NOT_RUNNING.value, detail)
             return
         verdict = self.driver.offer(decoded)
-        if verdict.reason == "failed":
+        if verdict.reason is Reason.FAILED:
             self.counters["failed_duels"] += 1
             self._failure(decoded.duel_id, verdict.detail)
             return
-        if verdict.reason == "duplicate":
+        if verdict.reason is Reason.DUPLICATE:
             self.counters["outcomes_duplicate"] += 1
             return
         if not verdict.accepted:
-            self.drop(verdict.reason, verdict.detail)
+            self.drop(verdict.reason.value, verdict.detail)
             return
         self.counters["duels_done"] = self.driver.n_duels
+        every = self.settings["progress_every"]
+        if every and self.driver.n_duels % every == 0:
+            self.get_logger().info(
+                f"{self.driver.n_duels} duels, {self.driver.session.evaluations}/"
+                f"{self.driver.session.budget} evaluations"
+            )
         self._last_publish = self._now()  # progress: no re-publish right away
         self._deadline = self._last_publish + self.settings["duel_timeout_s"]
         if not self.driver.step_open:
@@ -323,6 +366,27 @@ class OptimizerNode(SuiteNode):
         self.cpu_seconds = time.process_time() - self._cpu0
         self.state = "done"
         self.publish_status(0, f"run complete: {self.driver.n_duels} duels")
+        self.get_logger().info(self.summary().format())
+
+    def summary(self) -> RunSummary:
+        """What the run produced, as far as this node knows (no episode returns)."""
+        inc = self.driver.incumbent()
+        rec = self.driver.recommendation() if self.driver.n_duels else None
+        return RunSummary(
+            run_id=self.config.run_id,
+            state=self.state,
+            error=self.error,
+            duels=self.driver.n_duels,
+            resumed_duels=self.resumed_duels,
+            evaluations=self.driver.session.evaluations,
+            budget=self.driver.session.budget,
+            incumbent_id=None if inc is None else inc.candidate_id,
+            incumbent_theta=() if inc is None else inc.theta,
+            recommended_id=None if rec is None else rec.candidate_id,
+            recommended_theta=() if rec is None else rec.theta,
+            run_seconds=max(self.finished_at - self.started_at, 0.0),
+            run_cpu_seconds=self.cpu_seconds,
+        )
 
     def _stop(self, reason: str) -> None:
         self.finished = True
@@ -331,6 +395,7 @@ class OptimizerNode(SuiteNode):
         self.state = "failed"
         self.get_logger().error(reason)
         self.publish_status(2, reason)
+        self.get_logger().info(self.summary().format())
 
 
 def main(argv: list[str] | None = None) -> int:

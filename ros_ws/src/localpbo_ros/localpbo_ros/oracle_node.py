@@ -4,13 +4,13 @@ Subscribes ``/localpbo/run_config``, ``/localpbo/episode_result``, ``/localpbo/d
 publishes ``/localpbo/duel_outcome`` and ``/localpbo/status``. Results and duels are matched by
 id, never by arrival order; a request waits until both episode results are known.
 
-The comparison is ``localpbo_core.problems.PreferenceOracle.compare`` with noise std =
-``noise_fraction`` × the task's value range (run config ``options.oracle``), its generator
-seeded per duel by ``SeedSequence([run seed, ORACLE_TAG, duel id])``: the answer to a duel is
-a function of the run seed, the duel id and the two returns only, so duplicates, late joiners
-and resumed runs get the same answer. A decisive answer is stored and re-published for a
-repeated request. A failed episode result fails the duels waiting on it (and is then
-forgotten, so a retry waits for the fresh result).
+The comparison is the run's simulated oracle, ``localpbo_core.problems.DuelOracle``: noise
+std = ``noise_fraction`` × the task's value range (run config ``options.oracle``), drawn per
+duel from ``localpbo_core.seeds.duel_seed(run seed, duel id)``. The answer to a duel is a
+function of the run seed, the duel id and the two returns only, so duplicates, late joiners,
+resumed runs and ``localpbo bench`` get the same answer. A decisive answer is stored and
+re-published for a repeated request. A failed episode result fails the duels waiting on it
+(and is then forgotten, so a retry waits for the fresh result).
 """
 
 from __future__ import annotations
@@ -18,37 +18,22 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-import numpy as np
 from rclpy.context import Context
 
-from localpbo_core.problems import PreferenceOracle
+from localpbo_core.problems import DuelOracle
+from localpbo_core.session import build_problem
 from localpbo_msgs_py import DecodeError, DuelOutcome, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.records import EpisodeStatus
 from localpbo_msgs_py.topics import DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
-from localpbo_ros.driver import build_problem, section
+from localpbo_ros.driver import settings_of
 from localpbo_ros.follower import FollowerNode
-
-ORACLE_TAG = 0x0AC1
-"""Tag mixed into the per-duel oracle seed."""
-
-
-def duel_seed(run_seed: int, duel_id: int) -> int:
-    """Seed of the oracle noise for one duel."""
-    ss = np.random.SeedSequence([run_seed, ORACLE_TAG, duel_id])
-    return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
 def judge(
-    problem: Any,
-    noise_fraction: float,
-    run_seed: int,
-    request: DuelRequest,
-    value_first: float,
-    value_second: float,
+    oracle: DuelOracle, request: DuelRequest, value_first: float, value_second: float
 ) -> DuelOutcome:
-    """The decisive outcome of ``request`` (eq. pi: first wins iff y_first > y_second)."""
-    oracle = PreferenceOracle(problem, noise_fraction, seed=duel_seed(run_seed, request.duel_id))
-    first_wins = oracle.compare(value_first, value_second)
+    """The decisive outcome of ``request`` (paper eq. (3): first wins iff y_first > y_second)."""
+    first_wins = oracle.first_wins(request.duel_id, value_first, value_second)
     return DuelOutcome.decisive(request, request.first_id if first_wins else request.second_id)
 
 
@@ -63,8 +48,7 @@ class OracleNode(FollowerNode):
         cli_args: list[str] | None = None,
     ) -> None:
         super().__init__("oracle", [], context=context, overrides=overrides, cli_args=cli_args)
-        self._problem: Any = None
-        self._noise = 0.0
+        self._oracle: DuelOracle | None = None
         self._results: dict[int, EpisodeResult] = {}
         self._waiting: dict[int, DuelRequest] = {}
         self._answered: dict[int, DuelOutcome] = {}
@@ -89,10 +73,9 @@ class OracleNode(FollowerNode):
         self._answered.clear()
 
     def adopt(self, config: RunConfig) -> None:
-        """Build the task (for its value range) and read the noise fraction."""
-        self._problem = build_problem(config.task, section(config, "task"))
-        self._noise = float(section(config, "oracle").get("noise_fraction", 0.1))
-        PreferenceOracle(self._problem, self._noise, seed=0)  # validates noise vs value range
+        """Build the run's oracle (the task's value range scales the noise)."""
+        settings = settings_of(config)
+        self._oracle = DuelOracle(build_problem(settings), settings.noise_fraction, settings.seed)
 
     def _reason(self, err: DecodeError) -> str:
         return "wrong_run" if "wrong run" in err.problem else "malformed"
@@ -170,14 +153,8 @@ class OracleNode(FollowerNode):
                 self.counters["duels_failed"] += 1
             elif first is not None and second is not None:
                 assert first.episode_return is not None and second.episode_return is not None
-                outcome = judge(
-                    self._problem,
-                    self._noise,
-                    self.config.seed,
-                    req,
-                    first.episode_return,
-                    second.episode_return,
-                )
+                assert self._oracle is not None
+                outcome = judge(self._oracle, req, first.episode_return, second.episode_return)
                 self._answered[duel_id] = outcome
                 self.counters["duels_answered"] += 1
             else:

@@ -2,12 +2,13 @@
 
 Play: every recorded message (optionally only ``topics``) is published at its original
 offset from the first message divided by ``rate``, ``loops`` times; each topic's publisher uses
-the QoS recorded in the channel's ``offered_qos_profiles`` (DESIGN.md §5), so latched topics
-stay latched; without it, reliable/volatile/depth 10 as rosbag2 does.
+the QoS recorded in the channel's ``offered_qos_profiles`` metadata, so latched topics stay
+latched; without it, reliable/volatile/depth 10 as rosbag2 does.
 
-Verify (DESIGN.md §3): rebuild the optimizer from the recorded run config, re-feed the
-recorded outcomes with the node's own acceptance rule, and check that it proposes exactly the
-recorded candidates (θ compared as decoded floats, never as CDR bytes) and duels.
+Verify: rebuild the run from the recorded run config, re-feed the recorded outcomes with the
+node's own acceptance rule (the run protocol of ``localpbo_core.session``: same config and
+outcomes give the same candidates), and check that it proposes exactly the recorded
+candidates (θ compared as decoded floats, never as CDR bytes) and duels.
 """
 
 from __future__ import annotations
@@ -173,7 +174,7 @@ def verify(path: str | os.PathLike[str]) -> VerifyReport:
                 f"candidate {cid}: θ[{diff}] recorded {rec.theta[diff]!r}, "
                 f"rebuilt {mine.theta[diff]!r}",
             )
-    duels = rebuilt.driver.optimizer.history.duels
+    duels = rebuilt.driver.session.optimizer.history.duels
     for did in sorted(run.requests):
         req = run.requests[did]
         if did >= len(duels) or (duels[did].first, duels[did].second) != (

@@ -1,10 +1,10 @@
 """``sim_node``: runs one episode per candidate and publishes its return.
 
 Subscribes ``/localpbo/run_config`` and ``/localpbo/candidate``; publishes
-``/localpbo/episode_result`` and ``/localpbo/status``. θ arrives in task units and is mapped
-back to [0,1]^d through the run config's box. The episode seed is the in-process loop's
-(``localpbo_core.loop.episode_seed(run seed, candidate id)``), so a candidate's return does not
-depend on arrival order or on which process evaluates it.
+``/localpbo/episode_result`` and ``/localpbo/status``. θ arrives in task units and is evaluated
+as received (``evaluate_native``) with the candidate's episode seed
+(``localpbo_core.seeds.episode_seed(run seed, candidate id)``): exactly what the in-process
+run evaluates, whichever process evaluates it and in whichever order.
 
 Idempotent by id: a candidate seen again with the same θ gets its stored result re-published
 (no second episode); a failed episode is re-run when its candidate is published again (retry).
@@ -21,21 +21,15 @@ from typing import Any
 import numpy as np
 from rclpy.context import Context
 
-from localpbo_core.loop import episode_seed
+from localpbo_core.seeds import episode_seed
+from localpbo_core.session import build_problem, evaluate_native
 from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
-from localpbo_ros.driver import build_problem, section
+from localpbo_ros.driver import settings_of
 from localpbo_ros.follower import FollowerNode
 
 Evaluator = Callable[[RunConfig, int, np.ndarray], float]
-"""``(run config, candidate id, θ in [0,1]^d) -> episode return``."""
-
-
-def unit_theta(config: RunConfig, native: tuple[float, ...]) -> np.ndarray:
-    """θ in [0,1]^d from task units (inverse of the affine ``to_native``)."""
-    lo = np.asarray(config.lower)
-    hi = np.asarray(config.upper)
-    return np.clip((np.asarray(native) - lo) / (hi - lo), 0.0, 1.0)
+"""``(run config, candidate id, θ in task units as received) -> episode return``."""
 
 
 class SimNode(FollowerNode):
@@ -69,14 +63,14 @@ class SimNode(FollowerNode):
     def adopt(self, config: RunConfig) -> None:
         """Build the task of the run (unless an evaluator was given)."""
         if self._evaluator is None:
-            self._problem = build_problem(config.task, section(config, "task"))
+            self._problem = build_problem(settings_of(config))
             if self._problem.dim != config.dim:
                 raise ValueError(f"dim: task has {self._problem.dim}, config {config.dim}")
 
-    def _evaluate(self, config: RunConfig, cid: int, theta01: np.ndarray) -> float:
+    def _evaluate(self, config: RunConfig, cid: int, native: tuple[float, ...]) -> float:
         if self._evaluator is not None:
-            return float(self._evaluator(config, cid, theta01))
-        return float(self._problem.evaluate(theta01, seed=episode_seed(config.seed, cid)))
+            return float(self._evaluator(config, cid, np.asarray(native, dtype=np.float64)))
+        return evaluate_native(self._problem, np.asarray(native), episode_seed(config.seed, cid))
 
     def _on_candidate(self, msg: object) -> None:
         if self.hold(self._on_candidate, msg):
@@ -104,7 +98,7 @@ class SimNode(FollowerNode):
             self._pub.publish(cached.encode())
             return
         try:
-            value = self._evaluate(config, cand.candidate_id, unit_theta(config, cand.theta))
+            value = self._evaluate(config, cand.candidate_id, cand.theta)
             if not math.isfinite(value):
                 raise ValueError(f"episode return is not finite ({value})")
             result = EpisodeResult.ok(config.run_id, cand.candidate_id, value)

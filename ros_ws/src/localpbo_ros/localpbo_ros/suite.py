@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -32,73 +32,7 @@ from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.params import ParameterError
 from localpbo_ros.recorder import RecorderNode
 from localpbo_ros.sim_node import Evaluator, SimNode
-
-DEFAULTS: dict[str, Any] = {
-    "task": "swimmer",
-    "algorithm": "turpbo",
-    "budget": 162,
-    "seed": 0,
-}
-"""The embedded default: TuRPBO on the 16-D Swimmer linear policy, 2 + 10 d = 162 evaluations."""
-
-
-@dataclass(frozen=True)
-class RunSummary:
-    """What ``localpbo run`` prints at the end."""
-
-    run_id: str
-    bag: str
-    state: str
-    error: str
-    duels: int
-    resumed_duels: int
-    evaluations: int
-    best_id: int | None
-    best_theta: tuple[float, ...]
-    seconds: float
-    loop_seconds: float
-    loop_cpu_seconds: float
-    recorded: int
-    best_return: float | None = None
-    first_return: float | None = None
-    recommended_id: int | None = None
-    recommended_theta: tuple[float, ...] = ()
-    recommended_return: float | None = None
-
-    def format(self) -> str:
-        """Human-readable summary."""
-        lines = [
-            f"run {self.run_id}: {self.state}" + (f" ({self.error})" if self.error else ""),
-            f"duels: {self.duels}"
-            + (f" ({self.resumed_duels} from the resumed bag)" if self.resumed_duels else ""),
-            f"evaluations: {self.evaluations}",
-            f"time: {self.seconds:.1f} s",
-        ]
-        if self.recommended_id is not None:
-            theta = ", ".join(f"{v:.4f}" for v in self.recommended_theta)
-            lines.append(
-                f"recommended candidate (highest posterior mean utility given all duels): "
-                f"id {self.recommended_id}, θ = [{theta}]"
-            )
-        if self.best_id is not None:
-            theta = ", ".join(f"{v:.4f}" for v in self.best_theta)
-            lines.append(f"incumbent (won its latest duel): id {self.best_id}, θ = [{theta}]")
-        returns = [
-            (name, value)
-            for name, value in (
-                ("recommended", self.recommended_return),
-                ("incumbent", self.best_return),
-                ("first candidate", self.first_return),
-            )
-            if value is not None
-        ]
-        if returns:
-            lines.append(
-                "episode return (reported, never shown to the optimizer): "
-                + ", ".join(f"{name} {value:.1f}" for name, value in returns)
-            )
-        lines.append(f"bag: {self.bag}")
-        return "\n".join(lines)
+from localpbo_ros.summary import RunSummary
 
 
 def run_suite(
@@ -166,11 +100,11 @@ def run_suite(
             raise
         nodes.append(opt)
         executor.add_node(opt)
-        budget = opt.driver.optimizer.budget
+        budget = opt.driver.session.budget
         while not opt.finished:
             executor.spin_once(timeout_sec=0.05)
             if on_progress is not None:
-                on_progress(opt.driver.optimizer.evaluations_used, budget)
+                on_progress(opt.driver.session.evaluations, budget)
             if timeout_s is not None and time.monotonic() - start > timeout_s:
                 opt.error, opt.state = f"no result within {timeout_s} s", "timeout"
                 break
@@ -178,27 +112,15 @@ def run_suite(
         settle = time.monotonic() + 0.3
         while time.monotonic() < settle:
             executor.spin_once(timeout_sec=0.02)
-        inc = opt.driver.incumbent()
-        rec = opt.driver.recommendation()
-        return RunSummary(
-            opt.config.run_id,
-            str(bag) if record else "",
-            opt.state,
-            opt.error,
-            opt.driver.n_duels,
-            opt.resumed_duels,
-            opt.driver.optimizer.evaluations_used,
-            None if inc is None else inc.candidate_id,
-            () if inc is None else inc.theta,
-            time.monotonic() - start,
-            max(opt.finished_at - opt.started_at, 0.0),
-            opt.cpu_seconds,
-            nodes[0].recorded if record else 0,
-            None if inc is None else oracle.episode_return(inc.candidate_id),
-            oracle.episode_return(0),
-            None if rec is None else rec.candidate_id,
-            () if rec is None else rec.theta,
-            None if rec is None else oracle.episode_return(rec.candidate_id),
+        node_summary = opt.summary()
+        return replace(
+            node_summary,
+            wall_seconds=time.monotonic() - start,
+            bag=str(bag) if record else "",
+            messages_recorded=nodes[0].recorded if record else 0,
+            recommended_return=_return_of(oracle, node_summary.recommended_id),
+            incumbent_return=_return_of(oracle, node_summary.incumbent_id),
+            first_candidate_return=oracle.episode_return(0),
         )
     finally:
         for node in nodes:
@@ -210,6 +132,10 @@ def run_suite(
             if refused:  # nothing ran: leave no empty bag behind
                 Path(bag).unlink(missing_ok=True)
         rclpy.shutdown(context=ctx)
+
+
+def _return_of(oracle: OracleNode, candidate_id: int | None) -> float | None:
+    return None if candidate_id is None else oracle.episode_return(candidate_id)
 
 
 def default_bag(out: str | os.PathLike[str], run_id: str) -> Path:

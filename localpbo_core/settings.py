@@ -1,0 +1,156 @@
+"""The settings of one run, their defaults and their validation.
+
+A run is fully described by :class:`RunSettings`: algorithm, problem, seed, budget, shared
+initial design, oracle noise and the keyword options of the algorithm and of the problem.
+Every path (``localpbo bench``, ``localpbo run``, the ROS nodes, ``replay --verify``,
+``run --resume``) builds its run from these settings, so each default is written here once:
+
+* ``DEFAULT_INITIAL_DESIGN = 2`` random points shared by every algorithm (paper App. D.1,
+  "same initial data"; policy search uses 5 d);
+* ``DEFAULT_NOISE_FRACTION = 0.1``: oracle noise std as a fraction of the problem's
+  approximate value range (paper Sec. 6 and App. D.1, "Noise model");
+* ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (TuRPBO) on ``DEFAULT_PROBLEM`` (Swimmer);
+* the budget ``initial design + 10 d`` evaluations (:func:`default_budget`; 62 on
+  Hartmann 6, paper App. D.1 "Evaluation and comparison budgets").
+
+Bad settings raise :class:`SettingError`, which carries the offending field and the reason
+as data (``exc.field``, ``exc.reason``), so a caller maps the field to its own name (a CLI
+flag, a ROS parameter) without parsing text.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+DEFAULT_INITIAL_DESIGN = 2
+"""Shared random initial points of a run (paper App. D.1)."""
+
+DEFAULT_NOISE_FRACTION = 0.1
+"""Oracle noise std as a fraction of the problem's value range (paper App. D.1)."""
+
+DEFAULT_ALGORITHM = "turpbo"
+"""The algorithm of ``localpbo run`` and of the optimizer node when none is chosen."""
+
+DEFAULT_PROBLEM = "swimmer"
+"""The embedded default task: the 16-D Swimmer linear policy (162 evaluations, ~20 s)."""
+
+BUDGET_PER_DIMENSION = 10
+"""The default budget adds this many evaluations per dimension to the initial design."""
+
+
+class SettingError(ValueError):
+    """A refused setting: ``field`` names it, ``reason`` says why (``str()`` joins both).
+
+    ``field`` is a dotted path for nested settings, e.g. ``optimizer_options.batch_size``
+    or ``problem_options.episode_steps``.
+    """
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"{field}: {reason}")
+        self.field = field
+        self.reason = reason
+
+    def within(self, prefix: str) -> SettingError:
+        """The same error with ``prefix.`` in front of its field."""
+        return SettingError(f"{prefix}.{self.field}", self.reason)
+
+
+def default_budget(dim: int, initial_design: int = DEFAULT_INITIAL_DESIGN) -> int:
+    """``initial_design + 10 d`` evaluations (paper App. D.1)."""
+    return int(initial_design) + BUDGET_PER_DIMENSION * int(dim)
+
+
+def check_int(field: str, value: object, minimum: int = 0) -> int:
+    """``value`` as an int if it is an integer (not a bool) >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise SettingError(field, f"must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_fraction(field: str, value: object) -> float:
+    """``value`` as a float if it is a finite number >= 0 (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise SettingError(field, f"must be a finite number, got {value!r}")
+    if value < 0:
+        raise SettingError(field, f"must be >= 0, got {value!r}")
+    return float(value)
+
+
+def _check_options(field: str, value: object) -> dict[str, Any]:
+    if not isinstance(value, Mapping):
+        raise SettingError(field, f"must be a mapping of option names to values, got {value!r}")
+    for key in value:
+        if not isinstance(key, str) or not key:
+            raise SettingError(field, f"option names must be non-empty strings, got {key!r}")
+    return dict(value)
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """Everything that defines a run; equal settings and outcomes give an identical run.
+
+    Args:
+        algorithm: registered algorithm name (``make_optimizer``), lower-cased.
+        problem: registered problem name (``make_problem``), e.g. ``hartmann6``, ``hopper``.
+        seed: run seed (>= 0); the optimizer, the episode seeds and the oracle noise derive
+            from it (:mod:`localpbo_core.seeds`).
+        budget: evaluations including the initial design; ``None`` for
+            :func:`default_budget`.
+        initial_design: shared random initial points (>= 2).
+        noise_fraction: oracle noise std as a fraction of the problem's value range (>= 0).
+        optimizer_options: keyword options of the algorithm (e.g. ``batch_size``).
+        problem_options: keyword options of the problem (e.g. ``episode_steps``).
+
+    Raises:
+        SettingError: a field of the wrong type or out of range (checked at construction;
+            whether the algorithm and problem accept the options is checked when a
+            :class:`~localpbo_core.session.Session` is built).
+    """
+
+    algorithm: str
+    problem: str
+    seed: int = 0
+    budget: int | None = None
+    initial_design: int = DEFAULT_INITIAL_DESIGN
+    noise_fraction: float = DEFAULT_NOISE_FRACTION
+    optimizer_options: Mapping[str, Any] = field(default_factory=dict)
+    problem_options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("algorithm", "problem"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or not value.strip():
+                raise SettingError(name, f"must be a non-empty name, got {value!r}")
+        object.__setattr__(self, "algorithm", self.algorithm.strip().lower())
+        object.__setattr__(self, "problem", self.problem.strip())
+        check_int("seed", self.seed)
+        if self.budget is not None:
+            check_int("budget", self.budget, minimum=1)
+        check_int("initial_design", self.initial_design, minimum=2)
+        if self.budget is not None and self.budget < self.initial_design:
+            raise SettingError(
+                "budget",
+                f"{self.budget} is smaller than the initial design ({self.initial_design})",
+            )
+        object.__setattr__(
+            self, "noise_fraction", check_fraction("noise_fraction", self.noise_fraction)
+        )
+        options = _check_options("optimizer_options", self.optimizer_options)
+        for reserved in ("dim", "seed", "budget", "initial_design"):
+            if reserved in options:
+                raise SettingError(
+                    f"optimizer_options.{reserved}", "is a run setting of its own, not an option"
+                )
+        object.__setattr__(self, "optimizer_options", options)
+        object.__setattr__(
+            self, "problem_options", _check_options("problem_options", self.problem_options)
+        )
+
+    def replace(self, **changes: Any) -> RunSettings:
+        """A copy with some fields changed (validated again)."""
+        values = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        values.update(changes)
+        return RunSettings(**values)

@@ -1,0 +1,164 @@
+"""The run protocol's contract: the same algorithm, task, seed, budget and noise give
+bit-identical candidates, duel outcomes and episode returns in ``localpbo bench``, in
+``localpbo run`` (one process) and in four separate node processes."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from localpbo_ros.bagtools import load_run
+from localpbo_ros.suite import run_suite
+
+from localpbo_core.cli import bench, run_file_name
+from localpbo_core.settings import RunSettings
+from localpbo_msgs_py import EpisodeResult, Status
+from localpbo_msgs_py.bag import read_messages
+from localpbo_msgs_py.records import OutcomeKind
+from localpbo_msgs_py.topics import EPISODE_RESULT, STATUS
+
+TASK = "swimmer"
+TASK_OPTIONS = {"episode_steps": 60, "value_range": 50.0}
+ALGORITHM = "turpbo"
+OPTIONS = {"batch_size": 2}
+SEED = 5
+BUDGET = 12
+NOISE = 0.2
+
+
+def from_bench(tmp_path: Path) -> dict[str, Any]:
+    """Candidates (native θ), values and winners by duel id of ``localpbo bench``."""
+    out = tmp_path / "bench"
+    bench(
+        TASK,
+        [ALGORITHM],
+        [SEED],
+        out,
+        budget=BUDGET,
+        noise=NOISE,
+        options={ALGORITHM: dict(OPTIONS)},
+        problem_options=TASK_OPTIONS,
+        progress=False,
+    )
+    settings = RunSettings(algorithm=ALGORITHM, problem=TASK, seed=SEED)
+    doc = json.loads((out / "runs" / run_file_name(settings)).read_text())
+    return {
+        "native": {c["id"]: tuple(c["native"]) for c in doc["candidates"]},
+        "values": {c["id"]: c["value"] for c in doc["candidates"]},
+        "winners": {a["duel_id"]: (a["first"], a["second"], a["winner"]) for a in doc["answers"]},
+    }
+
+
+def from_bag(bag: Path) -> dict[str, Any]:
+    """The same three things as recorded in a bag."""
+    run = load_run(bag)
+    values = {}
+    for rec in read_messages(bag, topics=[EPISODE_RESULT.name]):
+        res = EpisodeResult.decode(rec.message)
+        assert isinstance(res, EpisodeResult)
+        values.setdefault(res.candidate_id, res.episode_return)
+    winners = {}
+    for out in run.outcomes:
+        assert out.kind is OutcomeKind.DECISIVE
+        winners.setdefault(out.duel_id, (out.first_id, out.second_id, out.winner_id))
+    return {
+        "native": {cid: c.theta for cid, c in run.candidates.items()},
+        "values": values,
+        "winners": winners,
+    }
+
+
+def node_parameters() -> dict[str, Any]:
+    return {
+        "run_id": "paths",
+        "algorithm": ALGORITHM,
+        "algorithm_options": json.dumps(OPTIONS),
+        "task": TASK,
+        "task_options": json.dumps(TASK_OPTIONS),
+        "seed": SEED,
+        "budget": BUDGET,
+        "noise_fraction": NOISE,
+    }
+
+
+def from_four_processes(tmp_path: Path) -> dict[str, Any]:
+    """Recorder, simulator, oracle and optimizer as separate processes (loopback DDS)."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "FASTRTPS_DEFAULT_PROFILES_FILE")
+    }
+    env["ROS_DOMAIN_ID"] = "61"
+    bag = tmp_path / "four.mcap"
+
+    def start(module: str, *ros_args: str) -> subprocess.Popen[str]:
+        cmd = [sys.executable, "-m", f"localpbo_ros.{module}", "--ros-args", *ros_args]
+        return subprocess.Popen(
+            cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+
+    recorder_module = (
+        "recorder_node"
+        if (Path(load_run.__code__.co_filename).parent / "recorder_node.py").exists()
+        else "recorder"
+    )
+    helpers = [
+        start(recorder_module, "-p", f"path:={bag}"),
+        start("sim_node", "-p", "run_id:=paths"),
+        start("oracle_node", "-p", "run_id:=paths"),
+    ]
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:  # the recorder hears both followers: discovery done
+            heard = set()
+            if bag.exists():
+                for rec in read_messages(bag, topics=[STATUS.name]):
+                    status = Status.decode(rec.message)
+                    if isinstance(status, Status) and "recorder" not in status.node:
+                        heard.add(status.node)
+            if len(heard) >= 2:
+                break
+            time.sleep(0.1)
+        args = ["-p", "min_subscribers:=2"]
+        for key, value in node_parameters().items():
+            text = f"'{value}'" if isinstance(value, str) and value.startswith("{") else value
+            args += ["-p", f"{key}:={text}"]
+        opt = subprocess.run(
+            [sys.executable, "-m", "localpbo_ros.optimizer_node", "--ros-args", *args],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert opt.returncode == 0, opt.stderr
+    finally:
+        for proc in helpers:
+            proc.send_signal(signal.SIGINT)
+        for proc in helpers:
+            proc.wait(30)
+    return from_bag(bag)
+
+
+@pytest.mark.slow
+def test_bench_run_and_four_processes_give_the_same_run(tmp_path: Path) -> None:
+    reference = from_bench(tmp_path)
+    assert len(reference["native"]) == BUDGET
+    assert len(reference["winners"]) >= BUDGET - 1
+
+    one_process = tmp_path / "one.mcap"
+    summary = run_suite(node_parameters(), one_process, timeout_s=300)
+    assert summary.state == "done", summary.error
+    paths = {"localpbo run": from_bag(one_process), "four processes": from_four_processes(tmp_path)}
+
+    for name, got in paths.items():
+        # floats compared exactly: bit-identical, not approximately equal
+        assert got["native"] == reference["native"], name
+        assert got["values"] == reference["values"], name
+        assert got["winners"] == reference["winners"], name
