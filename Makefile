@@ -8,10 +8,6 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.localpbo-installed
 
-# The GP works on small dense matrices: one BLAS/OpenMP thread is much faster than two
-# fighting over a small machine (measured 5-20x), so the Makefile pins it.
-export OMP_NUM_THREADS ?= 1
-
 .PHONY: demo test install lint clean
 
 install: $(STAMP)
