@@ -157,7 +157,7 @@ def test_demo_runs_and_reports_where_results_went(tmp_path, capsys) -> None:
 
 @pytest.mark.parametrize(("problem", "budget"), [("hartmann6", 12), ("swimmer", 5)])
 def test_bench_runs_every_algorithm(tmp_path, problem, budget) -> None:
-    """Issue 5: ``localpbo bench`` runs every registered algorithm on Hartmann 6 and on a
+    """``localpbo bench`` runs every registered algorithm on Hartmann 6 and on a
     MuJoCo task (short budgets; the full runs are in README)."""
     from collections import Counter
 

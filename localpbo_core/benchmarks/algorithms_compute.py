@@ -48,7 +48,7 @@ PAPER_SECONDS: dict[str, dict[str, float]] = {
         "prefsqp": 66.0,
     },
 }
-#: Issue 5 targets: minimum ratio paper/ours (GIPBOr: at most the paper's figure).
+#: Targets: minimum ratio paper/ours (GIPBOr: at most the paper's figure).
 TARGET_RATIO: dict[str, float] = {
     "gipbo": 20.0,
     "prefsqp": 10.0,

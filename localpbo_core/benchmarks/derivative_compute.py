@@ -3,7 +3,7 @@
 Hartmann 6-D with 62 evaluations and Rosenbrock 16-D with 162 (2 + 10 d, App. D.1), 10 %
 oracle noise, through ``localpbo bench``'s in-process loop. Prints the optimizer's own time
 (``ask``/``tell``; function evaluations excluded), the best-seen value and the ratio to the
-paper's figure. Issue 5 targets: GIPBO >= 20x below the paper, PrefSQP >= 10x below, GIPBOr
+paper's figure. Targets: GIPBO >= 20x below the paper, PrefSQP >= 10x below, GIPBOr
 at most the paper's figure. Run with one thread for comparable numbers:
 
     python -m localpbo_core.benchmarks.derivative_compute \
@@ -29,7 +29,7 @@ PAPER_SECONDS = {
     ("rosenbrock16", "gipbor"): 4.8,
     ("rosenbrock16", "prefsqp"): 66.0,
 }
-#: Issue 5 acceptance: required speed-up factor over the paper.
+#: Required speed-up factor over the paper.
 TARGET_FACTOR = {"gipbo": 20.0, "gipbor": 1.0, "prefsqp": 10.0}
 BUDGETS = {"hartmann6": 62, "rosenbrock16": 162}
 

@@ -1,4 +1,4 @@
-"""TuRPBO's Thompson-sampling step: autograd vs analytic-gradient path optimisation (issue 3).
+"""TuRPBO's Thompson-sampling step: autograd vs analytic-gradient path optimisation.
 
 One full TS selection (App. C.5, TuRPBO table) = draw one pathwise posterior sample path
 (paper Sec. 4, 1024 random Fourier features) + evaluate it on 1024 raw candidates in the trust

@@ -1,4 +1,4 @@
-"""``localpbo run``: the three nodes and the recorder in one process (DESIGN.md §8).
+"""``localpbo run``: the three nodes and the recorder in one process.
 
 A private ``Context`` with ``ROS_AUTOMATIC_DISCOVERY_RANGE=OFF`` (nothing leaves the process)
 and one ``SingleThreadedExecutor`` driven from this thread. The optimizer starts once the
