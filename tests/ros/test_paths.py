@@ -138,6 +138,10 @@ def from_four_processes(tmp_path: Path) -> dict[str, Any]:
             timeout=300,
         )
         assert opt.returncode == 0, opt.stderr
+        # the node logs progress and, at the end, the summary that localpbo run prints
+        assert "10 duels, " in opt.stderr
+        assert "run paths: done" in opt.stderr
+        assert "recommended candidate (highest posterior mean utility" in opt.stderr
     finally:
         for proc in helpers:
             proc.send_signal(signal.SIGINT)
