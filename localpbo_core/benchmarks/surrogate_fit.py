@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from typing import Any, TypeVar
 
 import torch
 from torch import Tensor
@@ -46,7 +47,7 @@ def botorch_model(
     lengthscale: Tensor | None = None,
     outputscale: float | None = None,
     xtol: float | None = None,
-):
+) -> Any:
     """BoTorch ``PairwiseGP`` with the paper's kernel/priors/constraints (App. C.2); the
     hyperparameters given are set and frozen (not learned); ``xtol`` goes to BoTorch's fsolve
     (None = BoTorch's default). Also the reference model of the surrogate tests."""
@@ -75,7 +76,7 @@ def botorch_model(
     return PairwiseGP(X, comp, covar_module=kern, xtol=xtol)
 
 
-def botorch_mll(model) -> float:
+def botorch_mll(model: Any) -> float:
     """BoTorch's Laplace mll (with hyperpriors) at the model's hyperparameters."""
     from botorch.models.pairwise_gp import PairwiseLaplaceMarginalLogLikelihood
 
@@ -86,9 +87,12 @@ def botorch_mll(model) -> float:
         return float(mll(out, model.unconsolidated_comparisons))
 
 
-def timed(fn: Callable[[], object], repeats: int = 1) -> tuple[float, object]:
+T = TypeVar("T")
+
+
+def timed(fn: Callable[[], T], repeats: int = 1) -> tuple[float, T]:
+    """Best wall time of ``repeats`` calls, and the last result."""
     best = float("inf")
-    out: object = None
     for _ in range(repeats):
         t0 = time.perf_counter()
         out = fn()
@@ -96,7 +100,7 @@ def timed(fn: Callable[[], object], repeats: int = 1) -> tuple[float, object]:
     return best, out
 
 
-def run(d: int, n: int, seed: int, skip_botorch_above: int) -> dict[str, object]:
+def run(d: int, n: int, seed: int, skip_botorch_above: int) -> dict[str, float]:
     X, comp = loop_data(d, n, seed)
     Xa, ca = X[: n + 1], comp[:n]
     t_cold, cold = timed(lambda: PairwiseGPSurrogate.fit(Xa, ca, z_limit=3.0))
@@ -114,7 +118,7 @@ def run(d: int, n: int, seed: int, skip_botorch_above: int) -> dict[str, object]
         "hess": timed(lambda: warm.mean_hessian(x), 5)[0],
         "S11": timed(lambda: warm.gradient_covariance(x), 5)[0],
     }
-    row: dict[str, object] = {
+    row: dict[str, float] = {
         "d": d,
         "n": n,
         "cold": t_cold,
@@ -131,7 +135,7 @@ def run(d: int, n: int, seed: int, skip_botorch_above: int) -> dict[str, object]
         from botorch.fit import fit_gpytorch_mll
         from botorch.models.pairwise_gp import PairwiseLaplaceMarginalLogLikelihood
 
-        def bt_fit():
+        def bt_fit() -> Any:
             model = botorch_model(X, comp)
             fit_gpytorch_mll(PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model))
             return model

@@ -24,6 +24,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from localpbo_core.surrogate import PairwiseGPSurrogate
 from localpbo_core.threads import use_fast_threads
 
 DIM = 33
@@ -34,16 +35,14 @@ NUM_RESTARTS = 5
 TR_LENGTH = 0.4
 
 
-def fitted_surrogate(p: int, seed: int) -> object:
+def fitted_surrogate(p: int, seed: int) -> PairwiseGPSurrogate:
     """Surrogate fitted (learned hyperparameters) to ``p - 1`` duels of consecutive uniform
     points under ``u(x) = -sum_i a_i (x_i - c_i)^2``, everything drawn from ``seed``."""
-    from localpbo_core.surrogate import PairwiseGPSurrogate
-
     g = torch.Generator().manual_seed(seed)
     X = torch.rand(p, DIM, generator=g, dtype=torch.float64)
-    centre = torch.rand(DIM, generator=g, dtype=torch.float64)
+    center = torch.rand(DIM, generator=g, dtype=torch.float64)
     weight = 10.0 * torch.rand(DIM, generator=g, dtype=torch.float64)
-    y = -(weight * (X - centre) ** 2).sum(-1)
+    y = -(weight * (X - center) ** 2).sum(-1)
     i = torch.arange(p - 1)
     win = y[i] > y[i + 1]
     comp = torch.stack([torch.where(win, i, i + 1), torch.where(win, i + 1, i)], dim=1)
