@@ -1,5 +1,5 @@
 """Headless rclpy fixtures: a private Context per test, a SingleThreadedExecutor driven from the
-test thread (DESIGN.md §8), discovery range OFF so nothing leaves the process."""
+test thread, discovery range OFF so nothing leaves the process."""
 
 from __future__ import annotations
 

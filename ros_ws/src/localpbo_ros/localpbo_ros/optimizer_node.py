@@ -180,7 +180,7 @@ class OptimizerNode(SuiteNode):
         resume_outcomes: Sequence[DuelOutcome] = (),
     ) -> None:
         super().__init__(
-            "optimizer", PARAMS, context=context, overrides=overrides, cli_args=cli_args
+            "optimizer_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
         )
         self.config = config_from_settings(self.settings)
         self.status_run_id = self.config.run_id
@@ -276,7 +276,7 @@ class OptimizerNode(SuiteNode):
     def _on_outcome(self, msg: object) -> None:
         decoded = DuelOutcome.decode(msg, expected_run_id=self.config.run_id)
         if isinstance(decoded, DecodeError):
-            reason = "wrong_run" if "wrong run" in decoded.problem else "malformed"
+            reason = decoded.reason.value
             self.drop(reason, str(decoded))
             return
         if self.finished or not self._started:

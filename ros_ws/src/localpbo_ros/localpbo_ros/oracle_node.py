@@ -62,7 +62,7 @@ class OracleNode(FollowerNode):
         overrides: dict[str, Any] | None = None,
         cli_args: list[str] | None = None,
     ) -> None:
-        super().__init__("oracle", [], context=context, overrides=overrides, cli_args=cli_args)
+        super().__init__("oracle_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._problem: Any = None
         self._noise = 0.0
         self._results: dict[int, EpisodeResult] = {}
@@ -95,7 +95,7 @@ class OracleNode(FollowerNode):
         PreferenceOracle(self._problem, self._noise, seed=0)  # validates noise vs value range
 
     def _reason(self, err: DecodeError) -> str:
-        return "wrong_run" if "wrong run" in err.problem else "malformed"
+        return err.reason.value
 
     # ------------------------------------------------------------------ callbacks
     def _on_result(self, msg: object) -> None:

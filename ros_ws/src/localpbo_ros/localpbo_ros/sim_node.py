@@ -53,7 +53,7 @@ class SimNode(FollowerNode):
         cli_args: list[str] | None = None,
         evaluator: Evaluator | None = None,
     ) -> None:
-        super().__init__("simulator", [], context=context, overrides=overrides, cli_args=cli_args)
+        super().__init__("sim_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._evaluator = evaluator
         self._problem: Any = None
         self._thetas: dict[int, tuple[float, ...]] = {}
@@ -91,7 +91,7 @@ class SimNode(FollowerNode):
             upper=config.upper,
         )
         if isinstance(cand, DecodeError):
-            self.drop("wrong_run" if "wrong run" in cand.problem else "malformed", str(cand))
+            self.drop(cand.reason.value, str(cand))
             return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:
