@@ -30,7 +30,7 @@ from localpbo_ros.dds import in_process_scope
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.params import ParameterError
-from localpbo_ros.recorder import RecorderNode
+from localpbo_ros.recorder_node import RecorderNode
 from localpbo_ros.sim_node import Evaluator, SimNode
 
 DEFAULTS: dict[str, Any] = {
