@@ -266,7 +266,9 @@ def test_optimizer_node_against_scripted_oracle_and_hostile_outcomes(ros) -> Non
     statuses = ros.collect(STATUS)
     ros.spin_for(0.2)
     opt.publish_status()
-    assert ros.spin_until(lambda: any(Status.decode(m).node == "optimizer_node" for m in statuses), 5)
+    assert ros.spin_until(
+        lambda: any(Status.decode(m).node == "optimizer_node" for m in statuses), 5
+    )
     reported = [Status.decode(m) for m in statuses if Status.decode(m).node == "optimizer_node"][-1]
     assert reported.state == "done" and reported.run_id == "t1"
     assert reported.counters["dropped_wrong_run"] == 1
