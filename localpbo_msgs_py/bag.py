@@ -97,7 +97,9 @@ class BagWriter:
         self._channels: dict[str, tuple[int, str]] = {}
         self._sequence: dict[str, int] = {}
         self._dirty = False
+        self._position = self._stream.tell()
         self._unflushed = 0
+        self._position = 0
         self._last_flush = time.monotonic()
         self._closed = False
         self._stop = threading.Event()
@@ -198,7 +200,12 @@ class BagWriter:
                 sequence=self._sequence[topic] % 2**32,
             )
             self._sequence[topic] += 1
-            self._unflushed += len(data) + MESSAGE_OVERHEAD
+            position = self._stream.tell()
+            if position != self._position:  # the writer closed a full chunk into the file
+                self._position = position
+                self._unflushed = 0
+            else:
+                self._unflushed += len(data) + MESSAGE_OVERHEAD
             self._dirty = True
             if time.monotonic() - self._last_flush >= self._flush_interval:
                 self._flush_locked()
@@ -212,7 +219,7 @@ class BagWriter:
 
     @property
     def size_bytes(self) -> int:
-        """Bytes of the file so far, counting messages not yet flushed (an upper estimate;
+        """Bytes of the file so far plus the messages of the open chunk (an upper estimate;
         closing adds the summary section: indexes and statistics)."""
         with self._lock:
             if self._closed:
