@@ -8,7 +8,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from localpbo_msgs_py._guard import check_type
 from localpbo_msgs_py._validate import check_text, keyvalues_to_dict
-from localpbo_msgs_py.errors import FieldError
+from localpbo_msgs_py.errors import DecodeReason, FieldError
 
 STATUS_TYPE_NAME = "diagnostic_msgs/msg/DiagnosticStatus"
 
@@ -29,7 +29,7 @@ def level_int(value: object) -> int:
         return value[0]
     if isinstance(value, int) and not isinstance(value, bool):
         return value
-    raise FieldError("level", f"unreadable level {value!r}")
+    raise FieldError("level", DecodeReason.MALFORMED, f"unreadable level {value!r}")
 
 
 def make_status(
@@ -50,7 +50,7 @@ def read_status(msg: object, name: str) -> tuple[int, str, dict[str, str]]:
     check_type(msg, DiagnosticStatus, STATUS_TYPE_NAME)
     assert isinstance(msg, DiagnosticStatus)
     if msg.name != name:
-        raise FieldError("name", f"is {msg.name[:80]!r}, expected {name!r}")
+        raise FieldError("name", DecodeReason.MALFORMED, f"is {msg.name[:80]!r}, expected {name!r}")
     check_text(msg.message, "message")
     check_text(msg.hardware_id, "hardware_id")
     return level_int(msg.level), msg.message, keyvalues_to_dict(msg.values)

@@ -1,8 +1,9 @@
 """Field validators shared by the codecs (run ids, integer ids, floats, KeyValue lists).
 
-Every validator raises :class:`~localpbo_msgs_py.errors.FieldError` naming the field, so one
-code path serves both encoders (which let it propagate as a ``ValueError``) and decoders (which
-turn it into a :class:`~localpbo_msgs_py.errors.DecodeError`).
+Every validator raises :class:`~localpbo_msgs_py.errors.FieldError` naming the field and the
+reason, so one code path serves both encoders (which let it propagate as a ``ValueError``) and
+decoders (which turn it into a :class:`~localpbo_msgs_py.errors.DecodeError`). Each check has
+one function here and so one wording, whichever codec runs it.
 """
 
 from __future__ import annotations
@@ -11,10 +12,11 @@ import array
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from localpbo_msgs_py.errors import FieldError
+from localpbo_msgs_py.errors import DecodeReason, FieldError
 
 RUN_ID_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 """Run ids: 1–64 characters, ASCII letters/digits then letters/digits/``_.-``."""
@@ -37,49 +39,90 @@ MAX_TEXT = 4096
 KEY_PATTERN = re.compile(r"[a-z][a-z0-9_.]{0,63}")
 """Allowed KeyValue keys and counter names."""
 
+R = DecodeReason
+
+
+def check_cap(size: int, cap: int, field: str, unit: str) -> None:
+    """Raise ``FieldError`` (``TOO_LARGE``) when ``size`` ``unit`` exceed ``cap``."""
+    if size > cap:
+        raise FieldError(field, R.TOO_LARGE, f"has {size} {unit}, more than the cap {cap}")
+
+
+def missing_key(field: str, key: str) -> FieldError:
+    """The error for a required key that is absent (``field`` holds the keys)."""
+    return FieldError(field, R.MALFORMED, f"missing key {key!r}")
+
+
+def unexpected_key(field: str, key: str, context: str = "") -> FieldError:
+    """The error for a key the schema does not allow."""
+    return FieldError(field, R.MALFORMED, f"unexpected key {key!r}{context}")
+
+
+def repeated_key(field: str, key: str) -> FieldError:
+    """The error for a key given more than once."""
+    return FieldError(field, R.MALFORMED, f"key {key!r} appears more than once")
+
+
+def wrong_type(field: str, expected: str, value: object) -> FieldError:
+    """The error for a value of the wrong Python or ROS type."""
+    return FieldError(field, R.WRONG_TYPE, f"expected {expected}, got {type(value).__name__}")
+
 
 def check_run_id(value: object, field: str = "run_id") -> str:
     """Return ``value`` if it is a valid run id, else raise ``FieldError``."""
-    if not isinstance(value, str):
-        raise FieldError(field, f"must be a string, got {type(value).__name__}")
-    if RUN_ID_PATTERN.fullmatch(value) is None:
+    text = check_text(value, field)
+    if RUN_ID_PATTERN.fullmatch(text) is None:
         raise FieldError(
-            field, f"{value[:80]!r} is not a run id ([A-Za-z0-9][A-Za-z0-9_.-]{{0,63}})"
+            field,
+            R.MALFORMED,
+            f"{text[:80]!r} is not a run id ([A-Za-z0-9][A-Za-z0-9_.-]{{0,63}})",
         )
-    return value
+    return text
 
 
 def check_expected_run(run_id: str, expected: str | None, field: str = "run_id") -> None:
-    """Raise ``FieldError`` when ``expected`` is given and differs from ``run_id``."""
+    """Raise ``FieldError`` (``WRONG_RUN``) when ``expected`` is given and differs."""
     if expected is not None and run_id != expected:
-        raise FieldError(field, f"wrong run: got {run_id!r}, expected {expected!r}")
+        raise FieldError(field, R.WRONG_RUN, f"wrong run: got {run_id!r}, expected {expected!r}")
 
 
 def check_id(value: object, field: str) -> int:
     """Return ``value`` if it is an integer id in ``[0, 2**63 - 1]`` (bools refused)."""
     if isinstance(value, bool) or not isinstance(value, int):
-        raise FieldError(field, f"must be an integer id, got {type(value).__name__}")
+        raise wrong_type(field, "an integer id", value)
     if value < 0:
-        raise FieldError(field, f"must be non-negative, got {value}")
+        raise FieldError(field, R.OUT_OF_BOUNDS, f"must be non-negative, got {value}")
     if value > MAX_ID:
-        raise FieldError(field, f"must be at most 2**63-1, got {value}")
+        raise FieldError(field, R.OUT_OF_BOUNDS, f"must be at most 2**63-1, got {value}")
     return value
+
+
+def check_minimum(value: object, field: str, minimum: int) -> int:
+    """Return ``value`` if it is an integer id of at least ``minimum``."""
+    out = check_id(value, field)
+    if out < minimum:
+        raise FieldError(field, R.OUT_OF_BOUNDS, f"must be >= {minimum}, got {out}")
+    return out
 
 
 def parse_id(text: str, field: str) -> int:
     """Parse a wire id (decimal, no sign, no leading zeros, no spaces)."""
     if ID_PATTERN.fullmatch(text) is None:
-        raise FieldError(field, f"{text[:80]!r} is not a non-negative integer id")
+        raise FieldError(field, R.MALFORMED, f"{text[:80]!r} is not a non-negative integer id")
     return check_id(int(text), field)
+
+
+def _not_finite(field: str, value: float) -> FieldError:
+    return FieldError(field, R.NON_FINITE, f"must be finite, got {value!r}")
 
 
 def check_finite(value: object, field: str) -> float:
     """Return ``value`` as float if it is a finite real number (bools refused)."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise FieldError(field, f"must be a number, got {type(value).__name__}")
+        raise wrong_type(field, "a number", value)
     out = float(value)
     if not math.isfinite(out):
-        raise FieldError(field, f"must be finite, got {out!r}")
+        raise _not_finite(field, out)
     return out
 
 
@@ -88,20 +131,17 @@ def parse_float(text: str, field: str) -> float:
     try:
         out = float(text)
     except ValueError:
-        raise FieldError(field, f"{text[:80]!r} is not a number") from None
-    if not math.isfinite(out):
-        raise FieldError(field, f"must be finite, got {text[:80]!r}")
-    return out
+        raise FieldError(field, R.MALFORMED, f"{text[:80]!r} is not a number") from None
+    return check_finite(out, field)
 
 
 def check_text(value: object, field: str, *, allow_empty: bool = True) -> str:
     """Return ``value`` if it is a string of at most ``MAX_TEXT`` characters."""
     if not isinstance(value, str):
-        raise FieldError(field, f"must be a string, got {type(value).__name__}")
-    if len(value) > MAX_TEXT:
-        raise FieldError(field, f"longer than {MAX_TEXT} characters ({len(value)})")
+        raise wrong_type(field, "a string", value)
+    check_cap(len(value), MAX_TEXT, field, "characters")
     if not allow_empty and not value:
-        raise FieldError(field, "must not be empty")
+        raise FieldError(field, R.MALFORMED, "must not be empty")
     return value
 
 
@@ -128,12 +168,11 @@ def check_vector(
     """Validate a θ vector: length, finiteness and (optionally) the box ``[lower, upper]``."""
     seq = values if isinstance(values, Sequence) else list(values)
     n = len(seq)
-    if n > max_len:
-        raise FieldError(field, f"has {n} entries, more than the cap {max_len}")
+    check_cap(n, max_len, field, "entries")
     if n == 0:
-        raise FieldError(field, "is empty")
+        raise FieldError(field, R.WRONG_SHAPE, "is empty")
     if expected_len is not None and n != expected_len:
-        raise FieldError(field, f"has length {n}, expected {expected_len}")
+        raise FieldError(field, R.WRONG_SHAPE, f"has length {n}, expected {expected_len}")
     out = _fast_floats(seq)
     if out is None:
         out = tuple(check_finite(v, f"{field}[{i}]") for i, v in enumerate(seq))
@@ -141,16 +180,22 @@ def check_vector(
         finite = np.isfinite(np.asarray(out))
         if not finite.all():
             i = int(np.argmin(finite))
-            raise FieldError(f"{field}[{i}]", f"must be finite, got {out[i]!r}")
+            raise _not_finite(f"{field}[{i}]", out[i])
     if lower is not None or upper is not None:
         for name, bound in (("lower", lower), ("upper", upper)):
             if bound is not None and len(bound) != n:
-                raise FieldError(field, f"{name} bound has length {len(bound)}, θ has {n}")
+                raise FieldError(
+                    field, R.WRONG_SHAPE, f"{name} bound has length {len(bound)}, θ has {n}"
+                )
         for i, v in enumerate(out):
             if lower is not None and v < lower[i]:
-                raise FieldError(f"{field}[{i}]", f"{v!r} is below the lower bound {lower[i]!r}")
+                raise FieldError(
+                    f"{field}[{i}]", R.OUT_OF_BOUNDS, f"{v!r} is below the lower bound {lower[i]!r}"
+                )
             if upper is not None and v > upper[i]:
-                raise FieldError(f"{field}[{i}]", f"{v!r} is above the upper bound {upper[i]!r}")
+                raise FieldError(
+                    f"{field}[{i}]", R.OUT_OF_BOUNDS, f"{v!r} is above the upper bound {upper[i]!r}"
+                )
     return out
 
 
@@ -161,33 +206,40 @@ def format_float(value: float) -> str:
 
 def keyvalues_to_dict(pairs: Sequence[object], field: str = "values") -> dict[str, str]:
     """Turn a ``diagnostic_msgs/KeyValue[]`` into a dict, refusing duplicates and oversize."""
-    if len(pairs) > MAX_KEYVALUES:
-        raise FieldError(field, f"has {len(pairs)} entries, more than the cap {MAX_KEYVALUES}")
+    check_cap(len(pairs), MAX_KEYVALUES, field, "entries")
     out: dict[str, str] = {}
     for i, kv in enumerate(pairs):
         key = getattr(kv, "key", None)
         value = getattr(kv, "value", None)
         if not isinstance(key, str) or not isinstance(value, str):
-            raise FieldError(f"{field}[{i}]", "is not a diagnostic_msgs/KeyValue")
+            raise wrong_type(f"{field}[{i}]", "diagnostic_msgs/KeyValue", kv)
         if key in out:
-            raise FieldError(key, "appears more than once")
+            raise repeated_key(key, key)
         check_text(value, key)
         out[key] = value
     return out
 
 
 def require_keys(
-    values: Mapping[str, str],
+    values: Mapping[str, Any],
     required: Iterable[str],
-    optional: Iterable[str] = (),
+    optional: Iterable[str] | None = (),
     context: str = "",
+    *,
+    field: str | None = None,
 ) -> None:
-    """Raise ``FieldError`` for the first missing required key or unexpected key."""
+    """Raise ``FieldError`` for the first missing required key or unexpected key.
+
+    ``optional=None`` allows any further key. The error names ``field`` when given (keys
+    inside one field, like a layout label), else the key itself.
+    """
     req = list(required)
-    allowed = set(req) | set(optional)
     for key in req:
         if key not in values:
-            raise FieldError(key, "missing")
+            raise missing_key(field or key, key)
+    if optional is None:
+        return
+    allowed = set(req) | set(optional)
     for key in values:
         if key not in allowed:
-            raise FieldError(key, f"unexpected key{context}")
+            raise unexpected_key(field or key, key, context)

@@ -1,4 +1,4 @@
-"""MCAP bag writer and reader for ROS 2 messages, rosbag2 (Jazzy) compatible (DESIGN.md §5).
+"""MCAP bag writer and reader for ROS 2 messages, rosbag2 (Jazzy) compatible.
 
 Writer: header profile ``ros2``; one schema per type, named ``pkg/msg/Type``, encoding
 ``ros2msg`` with the full definition text (:mod:`localpbo_msgs_py.msgdefs`); one channel per
@@ -42,6 +42,9 @@ QOS_METADATA_KEY = "offered_qos_profiles"
 LIBRARY = "localpbo_msgs_py"
 RECORD_SIZE_LIMIT = 256 * 2**20
 """Largest record the reader accepts (a corrupt length field must not allocate gigabytes)."""
+MESSAGE_OVERHEAD = 31 + 16
+"""Bytes an MCAP message costs besides its data: the record (opcode, length, channel,
+sequence, two times) and its message-index entry."""
 
 
 def message_class(type_name: str) -> type:
@@ -94,6 +97,9 @@ class BagWriter:
         self._channels: dict[str, tuple[int, str]] = {}
         self._sequence: dict[str, int] = {}
         self._dirty = False
+        self._position = self._stream.tell()
+        self._unflushed = 0
+        self._position = 0
         self._last_flush = time.monotonic()
         self._closed = False
         self._stop = threading.Event()
@@ -194,6 +200,12 @@ class BagWriter:
                 sequence=self._sequence[topic] % 2**32,
             )
             self._sequence[topic] += 1
+            position = self._stream.tell()
+            if position != self._position:  # the writer closed a full chunk into the file
+                self._position = position
+                self._unflushed = 0
+            else:
+                self._unflushed += len(data) + MESSAGE_OVERHEAD
             self._dirty = True
             if time.monotonic() - self._last_flush >= self._flush_interval:
                 self._flush_locked()
@@ -205,11 +217,21 @@ class BagWriter:
             self._check_open()
             self._flush_locked()
 
+    @property
+    def size_bytes(self) -> int:
+        """Bytes of the file so far plus the messages of the open chunk (an upper estimate;
+        closing adds the summary section: indexes and statistics)."""
+        with self._lock:
+            if self._closed:
+                return self.path.stat().st_size
+            return self._stream.tell() + self._unflushed
+
     def _flush_locked(self) -> None:
         self._writer.flush()
         if self._fsync:
             os.fsync(self._stream.fileno())
         self._dirty = False
+        self._unflushed = 0
         self._last_flush = time.monotonic()
 
     def _flush_loop(self) -> None:

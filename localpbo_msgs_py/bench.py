@@ -10,6 +10,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
@@ -18,6 +19,12 @@ from localpbo_msgs_py.bag import BagWriter, read_messages
 from localpbo_msgs_py.records import DuelOutcome, DuelRequest, EpisodeResult
 from localpbo_msgs_py.theta import CandidateMsg
 from localpbo_msgs_py.topics import CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
+
+
+class _Codec(Protocol):
+    """A suite record: ``encode`` to a ROS message, ``decode`` (a classmethod) back."""
+
+    def encode(self) -> Any: ...
 
 
 def _per_call_us(fn: Callable[[], object], n: int) -> float:
@@ -37,7 +44,7 @@ def main(argv: list[str] | None = None) -> None:
     rng = np.random.default_rng(args.seed)
     theta = tuple(float(v) for v in rng.standard_normal(args.dim))
     req = DuelRequest("bench", 1, 2, 3)
-    values = {
+    values: dict[str, tuple[str, _Codec]] = {
         "candidate": (CANDIDATE.name, CandidateMsg("bench", 7, theta)),
         "episode_result": (EPISODE_RESULT.name, EpisodeResult.ok("bench", 7, -3.25)),
         "duel_request": (DUEL_REQUEST.name, req),
@@ -50,10 +57,20 @@ def main(argv: list[str] | None = None) -> None:
         data = serialize_message(msg)
         cls = type(value)
         enc = _per_call_us(value.encode, args.n)
-        dec = _per_call_us(lambda m=msg, c=cls: c.decode(m, expected_run_id="bench"), args.n)
-        ser = _per_call_us(lambda m=msg: serialize_message(m), args.n)
         msg_type = type(msg)
-        de = _per_call_us(lambda d=data, t=msg_type: deserialize_message(d, t), args.n)
+
+        def decode(m: Any = msg, c: Any = cls) -> object:
+            return c.decode(m, expected_run_id="bench")
+
+        def serialize(m: Any = msg) -> object:
+            return serialize_message(m)
+
+        def deserialize(d: bytes = data, t: type = msg_type) -> object:
+            return deserialize_message(d, t)
+
+        dec = _per_call_us(decode, args.n)
+        ser = _per_call_us(serialize, args.n)
+        de = _per_call_us(deserialize, args.n)
         print(f"{key:<16}{enc:>10.1f}{dec:>10.1f}{ser:>10.1f}{de:>10.1f}")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.mcap"

@@ -1,4 +1,4 @@
-"""Full ``ros2msg`` schema text for MCAP, built the way rosbag2 Jazzy builds it (DESIGN.md §5).
+"""Full ``ros2msg`` schema text for MCAP, built the way rosbag2 Jazzy builds it.
 
 The text is the root ``.msg`` file verbatim, then every dependency once, depth-first, each
 dependency set visited in sorted order, each preceded by a line of 80 ``=`` and a line

@@ -1,4 +1,4 @@
-"""``offered_qos_profiles`` channel metadata in the YAML form rosbag2 Jazzy writes (DESIGN.md §5).
+"""``offered_qos_profiles`` channel metadata in the YAML form rosbag2 Jazzy writes.
 
 rosbag2_storage ``qos.cpp`` (bag format version 9+) writes a YAML sequence of maps with keys, in
 order: ``history``, ``depth``, ``reliability``, ``durability``, ``deadline``, ``lifespan``,

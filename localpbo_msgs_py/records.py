@@ -32,27 +32,46 @@ from localpbo_msgs_py._validate import (
     parse_id,
     require_keys,
 )
-from localpbo_msgs_py.errors import DecodeError, FieldError
+from localpbo_msgs_py.errors import DecodeError, DecodeReason, FieldError
 
 EPISODE_RESULT_NAME = "localpbo/episode_result"
 DUEL_REQUEST_NAME = "localpbo/duel_request"
 DUEL_OUTCOME_NAME = "localpbo/duel_outcome"
 
 
+R = DecodeReason
+
+
 def _check_level(level: int, expected: int) -> None:
     if level != expected:
-        raise FieldError("level", f"is {level}, expected {expected} for this record")
+        raise FieldError(
+            "level", R.INCONSISTENT, f"is {level}, expected {expected} for this record"
+        )
+
+
+def _check_distinct(first_id: int, second_id: int) -> None:
+    if first_id == second_id:
+        raise FieldError("second_id", R.INCONSISTENT, f"equals first_id ({first_id}): self-duel")
+
+
+def _require(condition: bool, field: str, problem: str) -> None:
+    """Raise ``FieldError`` (``INCONSISTENT``) unless ``condition``: a field that must be
+    present, absent or empty because of another field."""
+    if not condition:
+        raise FieldError(field, R.INCONSISTENT, problem)
 
 
 E = TypeVar("E", bound=StrEnum)
 
 
 def _enum(cls: type[E], value: object, field: str) -> E:
-    try:
-        return cls(value)
-    except ValueError:
-        allowed = ", ".join(m.value for m in cls)
-        raise FieldError(field, f"{value!r} is not one of {allowed}") from None
+    if isinstance(value, str):
+        for member in cls:
+            if member.value == value:
+                return member
+    allowed = ", ".join(m.value for m in cls)
+    shown = value[:40] if isinstance(value, str) else value
+    raise FieldError(field, R.MALFORMED, f"{shown!r} is not one of {allowed}")
 
 
 class EpisodeStatus(StrEnum):
@@ -81,16 +100,19 @@ class EpisodeResult:
         check_id(self.candidate_id, "candidate_id")
         object.__setattr__(self, "status", _enum(EpisodeStatus, self.status, "status"))
         if self.status is EpisodeStatus.OK:
-            if self.episode_return is None:
-                raise FieldError("episode_return", "required when status is ok")
+            _require(
+                self.episode_return is not None, "episode_return", "required when status is ok"
+            )
             object.__setattr__(
                 self, "episode_return", check_finite(self.episode_return, "episode_return")
             )
-            if self.error:
-                raise FieldError("error", "must be empty when status is ok")
+            _require(not self.error, "error", "must be empty when status is ok")
         else:
-            if self.episode_return is not None:
-                raise FieldError("episode_return", "must be absent when status is failed")
+            _require(
+                self.episode_return is None,
+                "episode_return",
+                "must be absent when status is failed",
+            )
             check_text(self.error, "error", allow_empty=False)
 
     @classmethod
@@ -129,7 +151,8 @@ class EpisodeResult:
             run_id = check_run_id(v["run_id"])
             check_expected_run(run_id, expected_run_id)
             cid = parse_id(v["candidate_id"], "candidate_id")
-            if v["status"] == EpisodeStatus.OK.value:
+            status = _enum(EpisodeStatus, v["status"], "status")
+            if status is EpisodeStatus.OK:
                 require_keys(
                     v,
                     ("run_id", "candidate_id", "status", "episode_return"),
@@ -137,15 +160,13 @@ class EpisodeResult:
                 )
                 _check_level(level, LEVEL_OK)
                 return cls.ok(run_id, cid, parse_float(v["episode_return"], "episode_return"))
-            if v["status"] == EpisodeStatus.FAILED.value:
-                require_keys(
-                    v,
-                    ("run_id", "candidate_id", "status", "error"),
-                    context=" (must be absent when status is failed)",
-                )
-                _check_level(level, LEVEL_ERROR)
-                return cls.failed(run_id, cid, v["error"])
-            raise FieldError("status", f"{v['status'][:40]!r} is not 'ok' or 'failed'")
+            require_keys(
+                v,
+                ("run_id", "candidate_id", "status", "error"),
+                context=" (must be absent when status is failed)",
+            )
+            _check_level(level, LEVEL_ERROR)
+            return cls.failed(run_id, cid, v["error"])
 
         return guarded("episode_result", body)
 
@@ -167,8 +188,7 @@ class DuelRequest:
         check_id(self.duel_id, "duel_id")
         check_id(self.first_id, "first_id")
         check_id(self.second_id, "second_id")
-        if self.first_id == self.second_id:
-            raise FieldError("second_id", f"equals first_id ({self.first_id}): self-duel")
+        _check_distinct(self.first_id, self.second_id)
 
     def encode(self) -> DiagnosticStatus:
         """The ROS message."""
@@ -203,7 +223,7 @@ class DuelRequest:
 
 
 class OutcomeKind(StrEnum):
-    """How a duel ended (DESIGN.md §3: winner/loser now, indifferent and failed later)."""
+    """How a duel ended: a winner and a loser, neither preferred, or not judged (failed)."""
 
     DECISIVE = "decisive"
     INDIFFERENT = "indifferent"
@@ -233,26 +253,32 @@ class DuelOutcome:
         check_id(self.duel_id, "duel_id")
         check_id(self.first_id, "first_id")
         check_id(self.second_id, "second_id")
-        if self.first_id == self.second_id:
-            raise FieldError("second_id", f"equals first_id ({self.first_id}): self-duel")
+        _check_distinct(self.first_id, self.second_id)
         object.__setattr__(self, "kind", _enum(OutcomeKind, self.kind, "kind"))
         if self.kind is OutcomeKind.DECISIVE:
-            if self.winner_id is None or self.loser_id is None:
-                raise FieldError("winner_id", "winner_id and loser_id required when decisive")
+            _require(
+                self.winner_id is not None and self.loser_id is not None,
+                "winner_id",
+                "winner_id and loser_id required when decisive",
+            )
             check_id(self.winner_id, "winner_id")
             check_id(self.loser_id, "loser_id")
-            if {self.winner_id, self.loser_id} != {self.first_id, self.second_id}:
-                raise FieldError(
-                    "winner_id",
-                    f"winner {self.winner_id}/loser {self.loser_id} are not the duel's ids "
-                    f"{self.first_id}, {self.second_id}",
-                )
-        elif self.winner_id is not None or self.loser_id is not None:
-            raise FieldError("winner_id", f"winner_id/loser_id must be absent when {self.kind}")
+            _require(
+                {self.winner_id, self.loser_id} == {self.first_id, self.second_id},
+                "winner_id",
+                f"winner {self.winner_id}/loser {self.loser_id} are not the duel's ids "
+                f"{self.first_id}, {self.second_id}",
+            )
+        else:
+            _require(
+                self.winner_id is None and self.loser_id is None,
+                "winner_id",
+                f"winner_id/loser_id must be absent when {self.kind}",
+            )
         if self.kind is OutcomeKind.FAILED:
             check_text(self.reason, "reason", allow_empty=False)
-        elif self.reason:
-            raise FieldError("reason", f"must be empty when {self.kind}")
+        else:
+            _require(not self.reason, "reason", f"must be empty when {self.kind}")
 
     @classmethod
     def decisive(cls, request: DuelRequest, winner_id: int) -> DuelOutcome:
@@ -324,8 +350,8 @@ class DuelOutcome:
             duel_id = parse_id(v["duel_id"], "duel_id")
             first = parse_id(v["first_id"], "first_id")
             second = parse_id(v["second_id"], "second_id")
-            kind = v["kind"]
-            if kind == OutcomeKind.DECISIVE.value:
+            kind = _enum(OutcomeKind, v["kind"], "kind")
+            if kind is OutcomeKind.DECISIVE:
                 require_keys(
                     v,
                     (*base, "winner_id", "loser_id"),
@@ -341,14 +367,12 @@ class DuelOutcome:
                     parse_id(v["winner_id"], "winner_id"),
                     parse_id(v["loser_id"], "loser_id"),
                 )
-            if kind == OutcomeKind.INDIFFERENT.value:
+            if kind is OutcomeKind.INDIFFERENT:
                 require_keys(v, base, context=" (must be absent when kind is indifferent)")
                 _check_level(level, LEVEL_OK)
                 return cls(run_id, duel_id, first, second, OutcomeKind.INDIFFERENT)
-            if kind == OutcomeKind.FAILED.value:
-                require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
-                _check_level(level, LEVEL_ERROR)
-                return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])
-            raise FieldError("kind", f"{kind[:40]!r} is not decisive, indifferent or failed")
+            require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
+            _check_level(level, LEVEL_ERROR)
+            return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])
 
         return guarded("duel_outcome", body)

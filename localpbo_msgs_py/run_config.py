@@ -22,13 +22,17 @@ from std_msgs.msg import String
 
 from localpbo_msgs_py._guard import check_type, guarded
 from localpbo_msgs_py._validate import (
+    check_cap,
     check_expected_run,
-    check_id,
+    check_minimum,
     check_run_id,
     check_text,
     check_vector,
+    repeated_key,
+    require_keys,
+    wrong_type,
 )
-from localpbo_msgs_py.errors import DecodeError, FieldError
+from localpbo_msgs_py.errors import DecodeError, DecodeReason, FieldError
 
 TYPE_NAME = "std_msgs/msg/String"
 SCHEMA = "localpbo/run_config/v1"
@@ -47,23 +51,19 @@ KEYS = (
 )
 
 
+R = DecodeReason
+
+
 def _no_constant(name: str) -> Any:
-    raise FieldError("data", f"JSON constant {name} is not allowed (non-finite number)")
+    raise FieldError("data", R.NON_FINITE, f"JSON constant {name} is not allowed")
 
 
 def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in pairs:
         if key in out:
-            raise FieldError("data", f"duplicate JSON key {key!r}")
+            raise repeated_key("data", key)
         out[key] = value
-    return out
-
-
-def _check_int(value: object, name: str, minimum: int) -> int:
-    out = check_id(value, name)
-    if out < minimum:
-        raise FieldError(name, f"must be >= {minimum}, got {out}")
     return out
 
 
@@ -85,22 +85,24 @@ class RunConfig:
         check_run_id(self.run_id)
         check_text(self.algorithm, "algorithm", allow_empty=False)
         check_text(self.task, "task", allow_empty=False)
-        _check_int(self.dim, "dim", 1)
+        check_minimum(self.dim, "dim", 1)
         lower = check_vector(self.lower, "lower", expected_len=self.dim)
         upper = check_vector(self.upper, "upper", expected_len=self.dim)
         for i, (lo, hi) in enumerate(zip(lower, upper, strict=True)):
             if not lo < hi:
-                raise FieldError(f"upper[{i}]", f"must exceed lower[{i}] ({hi!r} <= {lo!r})")
+                raise FieldError(
+                    f"upper[{i}]", R.INCONSISTENT, f"must exceed lower[{i}] ({hi!r} <= {lo!r})"
+                )
         object.__setattr__(self, "lower", lower)
         object.__setattr__(self, "upper", upper)
-        _check_int(self.seed, "seed", 0)
-        _check_int(self.budget, "budget", 1)
+        check_minimum(self.seed, "seed", 0)
+        check_minimum(self.budget, "budget", 1)
         if not isinstance(self.options, Mapping):
-            raise FieldError("options", f"must be a mapping, got {type(self.options).__name__}")
+            raise wrong_type("options", "a JSON object (mapping)", self.options)
         try:
             text = json.dumps(dict(self.options), allow_nan=False, sort_keys=True)
         except (TypeError, ValueError) as exc:
-            raise FieldError("options", f"not JSON-serialisable: {exc}") from None
+            raise FieldError("options", R.MALFORMED, f"not JSON-serialisable: {exc}") from None
         object.__setattr__(self, "options", json.loads(text))
 
     def to_json(self) -> str:
@@ -122,8 +124,7 @@ class RunConfig:
     def encode(self) -> String:
         """The ROS message."""
         text = self.to_json()
-        if len(text.encode()) > MAX_CONFIG_BYTES:
-            raise FieldError("data", f"JSON longer than {MAX_CONFIG_BYTES} bytes")
+        check_cap(len(text.encode()), MAX_CONFIG_BYTES, "data", "bytes")
         return String(data=text)
 
     @classmethod
@@ -133,31 +134,29 @@ class RunConfig:
         def body() -> RunConfig:
             check_type(msg, String, TYPE_NAME)
             assert isinstance(msg, String)
-            if len(msg.data) > MAX_CONFIG_BYTES:
-                raise FieldError("data", f"longer than {MAX_CONFIG_BYTES} characters")
+            # characters bound the bytes from below: a cheap first cap before encoding
+            check_cap(len(msg.data), MAX_CONFIG_BYTES, "data", "characters")
+            check_cap(len(msg.data.encode()), MAX_CONFIG_BYTES, "data", "bytes")
             try:
                 obj = json.loads(
                     msg.data, parse_constant=_no_constant, object_pairs_hook=_no_duplicates
                 )
             except json.JSONDecodeError as exc:
-                raise FieldError("data", f"not JSON: {exc}") from None
+                raise FieldError("data", R.MALFORMED, f"not JSON: {exc}") from None
             if not isinstance(obj, dict):
-                raise FieldError("data", f"must be a JSON object, got {type(obj).__name__}")
-            for key in KEYS:
-                if key not in obj:
-                    raise FieldError(key, "missing")
-            for key in obj:
-                if key not in KEYS:
-                    raise FieldError(key, "unexpected key")
+                raise wrong_type("data", "a JSON object", obj)
+            require_keys(obj, KEYS)
             if obj["schema"] != SCHEMA:
-                raise FieldError("schema", f"is {obj['schema']!r}, expected {SCHEMA!r}")
+                raise FieldError(
+                    "schema", R.MALFORMED, f"is {str(obj['schema'])[:80]!r}, expected {SCHEMA!r}"
+                )
             run_id = check_run_id(obj["run_id"])
             check_expected_run(run_id, expected_run_id)
             for key in ("lower", "upper"):
                 if not isinstance(obj[key], list):
-                    raise FieldError(key, f"must be a list, got {type(obj[key]).__name__}")
+                    raise wrong_type(key, "a list", obj[key])
             if not isinstance(obj["options"], dict):
-                raise FieldError("options", "must be a JSON object")
+                raise wrong_type("options", "a JSON object", obj["options"])
             return cls(
                 run_id,
                 obj["algorithm"],

@@ -27,8 +27,10 @@ from localpbo_msgs_py._validate import (
     check_run_id,
     check_text,
     parse_id,
+    require_keys,
+    unexpected_key,
 )
-from localpbo_msgs_py.errors import DecodeError, FieldError
+from localpbo_msgs_py.errors import DecodeError, DecodeReason, FieldError
 
 TYPE_NAME = "diagnostic_msgs/msg/DiagnosticArray"
 NAME_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,63}")
@@ -36,7 +38,12 @@ NAME_PATTERN = re.compile(r"[a-z][a-z0-9_]{0,63}")
 
 def _check_name(value: object, field_name: str) -> str:
     if not isinstance(value, str) or NAME_PATTERN.fullmatch(value) is None:
-        raise FieldError(field_name, f"{value!r} is not a name matching [a-z][a-z0-9_]{{0,63}}")
+        shown = value[:80] if isinstance(value, str) else value
+        raise FieldError(
+            field_name,
+            DecodeReason.MALFORMED,
+            f"{shown!r} is not a name matching [a-z][a-z0-9_]{{0,63}}",
+        )
     return value
 
 
@@ -58,16 +65,18 @@ class Status:
         _check_name(self.node, "node")
         _check_name(self.state, "state")
         if isinstance(self.level, bool) or self.level not in range(LEVEL_STALE + 1):
-            raise FieldError("level", f"must be 0..3, got {self.level!r}")
+            raise FieldError(
+                "level", DecodeReason.OUT_OF_BOUNDS, f"must be 0..3, got {self.level!r}"
+            )
         check_text(self.message, "message")
         check_id(self.stamp_ns, "stamp_ns")
         for k, n in self.counters.items():
             if not isinstance(k, str) or KEY_PATTERN.fullmatch(k) is None:
-                raise FieldError("counters", f"bad counter name {k!r}")
+                raise FieldError("counters", DecodeReason.MALFORMED, f"bad counter name {k!r}")
             check_id(n, f"count.{k}")
         for k, t in self.info.items():
             if not isinstance(k, str) or KEY_PATTERN.fullmatch(k) is None:
-                raise FieldError("info", f"bad info name {k!r}")
+                raise FieldError("info", DecodeReason.MALFORMED, f"bad info name {k!r}")
             check_text(t, f"info.{k}")
         object.__setattr__(self, "counters", dict(self.counters))
         object.__setattr__(self, "info", dict(self.info))
@@ -91,14 +100,16 @@ class Status:
             check_type(msg, DiagnosticArray, TYPE_NAME)
             assert isinstance(msg, DiagnosticArray)
             if len(msg.status) != 1:
-                raise FieldError("status", f"must hold exactly 1 entry, has {len(msg.status)}")
+                raise FieldError(
+                    "status",
+                    DecodeReason.MALFORMED,
+                    f"must hold exactly 1 entry, has {len(msg.status)}",
+                )
             entry = msg.status[0]
             node_key = next((kv.value for kv in entry.values if kv.key == "node"), "")
             node = _check_name(node_key, "node")
             level, message, v = read_status(entry, f"localpbo/{node}")
-            for key in ("run_id", "node", "state"):
-                if key not in v:
-                    raise FieldError(key, "missing")
+            require_keys(v, ("run_id", "node", "state"), optional=None)
             run_id = check_run_id(v["run_id"])
             check_expected_run(run_id, expected_run_id)
             counters: dict[str, int] = {}
@@ -112,7 +123,7 @@ class Status:
                 elif prefix == "info" and KEY_PATTERN.fullmatch(name):
                     info[name] = text
                 else:
-                    raise FieldError(key, "unexpected key")
+                    raise unexpected_key(key, key)
             stamp = msg.header.stamp
             return cls(
                 run_id,

@@ -1,6 +1,6 @@
 """θ-carrying messages: ``CandidateMsg`` and ``Incumbent`` on ``std_msgs/msg/Float64MultiArray``.
 
-Wire mapping (DESIGN.md §4): ``data`` is θ in the task's own units, so a ros2_control forward
+Wire mapping: ``data`` is θ in the task's own units, so a ros2_control forward
 controller can consume the message unchanged. The ids travel in the one layout dimension::
 
     layout.data_offset  = 0
@@ -24,13 +24,16 @@ from localpbo_msgs_py._guard import check_type, guarded
 from localpbo_msgs_py._validate import (
     MAX_TEXT,
     MAX_THETA_LEN,
+    check_cap,
     check_expected_run,
     check_id,
     check_run_id,
     check_vector,
     parse_id,
+    repeated_key,
+    require_keys,
 )
-from localpbo_msgs_py.errors import DecodeError, FieldError
+from localpbo_msgs_py.errors import DecodeError, DecodeReason, FieldError
 
 TYPE_NAME = "std_msgs/msg/Float64MultiArray"
 LABEL_FIELD = "layout.dim[0].label"
@@ -43,22 +46,20 @@ def format_label(pairs: Sequence[tuple[str, str]]) -> str:
 
 def parse_label(label: str, keys: Sequence[str]) -> dict[str, str]:
     """Parse a layout label; exactly ``keys`` must be present, each once."""
-    if len(label) > MAX_TEXT:
-        raise FieldError(LABEL_FIELD, f"longer than {MAX_TEXT} characters")
+    check_cap(len(label), MAX_TEXT, LABEL_FIELD, "characters")
     out: dict[str, str] = {}
     for part in label.split(";"):
         key, sep, value = part.partition("=")
         if not sep:
-            raise FieldError(LABEL_FIELD, f"{part[:80]!r} is not key=value (label {label[:120]!r})")
+            raise FieldError(
+                LABEL_FIELD,
+                DecodeReason.MALFORMED,
+                f"{part[:80]!r} is not key=value (label {label[:120]!r})",
+            )
         if key in out:
-            raise FieldError(LABEL_FIELD, f"key {key!r} appears more than once")
+            raise repeated_key(LABEL_FIELD, key)
         out[key] = value
-    for key in keys:
-        if key not in out:
-            raise FieldError(LABEL_FIELD, f"missing key {key!r} (label {label[:120]!r})")
-    for key in out:
-        if key not in keys:
-            raise FieldError(LABEL_FIELD, f"unexpected key {key!r}")
+    require_keys(out, keys, field=LABEL_FIELD)
     return out
 
 
@@ -85,19 +86,29 @@ def _read_theta(
     assert isinstance(msg, Float64MultiArray)
     dims = msg.layout.dim
     if len(dims) != 1:
-        raise FieldError("layout.dim", f"must have exactly 1 dimension, has {len(dims)}")
+        raise FieldError(
+            "layout.dim", DecodeReason.MALFORMED, f"must have exactly 1 dimension, has {len(dims)}"
+        )
     if msg.layout.data_offset != 0:
-        raise FieldError("layout.data_offset", f"must be 0, got {msg.layout.data_offset}")
+        raise FieldError(
+            "layout.data_offset", DecodeReason.MALFORMED, f"must be 0, got {msg.layout.data_offset}"
+        )
     fields = parse_label(dims[0].label, keys)
     if fields["kind"] != kind:
-        raise FieldError(LABEL_FIELD, f"kind is {fields['kind'][:40]!r}, expected {kind!r}")
+        raise FieldError(
+            LABEL_FIELD,
+            DecodeReason.MALFORMED,
+            f"kind is {fields['kind'][:40]!r}, expected {kind!r}",
+        )
     n = len(msg.data)
-    if n > max_len:
-        raise FieldError("data", f"has {n} entries, more than the cap {max_len}")
-    if dims[0].size != n:
-        raise FieldError("layout.dim[0].size", f"is {dims[0].size}, data has {n} entries")
-    if dims[0].stride != n:
-        raise FieldError("layout.dim[0].stride", f"is {dims[0].stride}, data has {n} entries")
+    check_cap(n, max_len, "data", "entries")
+    for name, value in (("size", dims[0].size), ("stride", dims[0].stride)):
+        if value != n:
+            raise FieldError(
+                f"layout.dim[0].{name}",
+                DecodeReason.INCONSISTENT,
+                f"is {value}, data has {n} entries",
+            )
     theta = check_vector(
         msg.data, "data", expected_len=expected_dim, lower=lower, upper=upper, max_len=max_len
     )

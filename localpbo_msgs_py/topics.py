@@ -1,9 +1,10 @@
 """Default topic names, message types and QoS profiles shared by the nodes and the recorder.
 
-All topics are reliable (DESIGN.md §4). Event topics keep the last ``EVENT_DEPTH`` messages and
-are volatile; state-like topics (incumbent, run config) are transient-local with depth 1 so a
-late joiner receives the latest value. A transient-local publisher also serves volatile
-subscribers; a transient-local subscriber does not connect to a volatile publisher.
+All topics are reliable (a lost duel outcome would stall the run). Event topics keep the last
+``EVENT_DEPTH`` messages and are volatile; state-like topics (incumbent, run config) are
+transient-local with depth 1 so a late joiner receives the latest value. A transient-local
+publisher also serves volatile subscribers; a transient-local subscriber does not connect to a
+volatile publisher.
 """
 
 from __future__ import annotations

@@ -16,9 +16,11 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from localpbo_msgs_py import (
     CandidateMsg,
     DecodeError,
+    DecodeReason,
     DuelOutcome,
     DuelRequest,
     EpisodeResult,
+    FieldError,
     Incumbent,
     OutcomeKind,
     RunConfig,
@@ -355,7 +357,7 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "episode_return",
         "not a number",
     ),
-    ("ep-bad-status", EpisodeResult.decode, ep(status="great"), "status", "not 'ok' or 'failed'"),
+    ("ep-bad-status", EpisodeResult.decode, ep(status="great"), "status", "not one of ok, failed"),
     (
         "ep-failed-no-error",
         EpisodeResult.decode,
@@ -406,7 +408,7 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "values",
         "cap 64",
     ),
-    ("ep-long-value", EpisodeResult.decode, ep(status="x" * 5000), "status", "longer than"),
+    ("ep-long-value", EpisodeResult.decode, ep(status="x" * 5000), "status", "cap 4096"),
     (
         "ep-wrong-type",
         EpisodeResult.decode,
@@ -461,7 +463,7 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "reason",
         "empty",
     ),
-    ("out-unknown-kind", DuelOutcome.decode, dout(kind="tie"), "kind", "not decisive"),
+    ("out-unknown-kind", DuelOutcome.decode, dout(kind="tie"), "kind", "not one of decisive"),
     (
         "out-wrong-run",
         lambda m: DuelOutcome.decode(m, expected_run_id="r0"),
@@ -482,7 +484,7 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         RunConfig.decode,
         String(data=GOOD_CONFIG.to_json()[:-1] + ', "seed": 4}'),
         "data",
-        "duplicate JSON key",
+        "key 'seed' appears more than once",
     ),
     ("cfg-array", RunConfig.decode, String(data="[1, 2]"), "data", "JSON object"),
     ("cfg-missing", RunConfig.decode, config_json(budget=None), "budget", "missing"),
@@ -502,7 +504,7 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "run_id",
         "wrong run",
     ),
-    ("cfg-huge", RunConfig.decode, String(data=" " * (2**20 + 1)), "data", "longer than"),
+    ("cfg-huge", RunConfig.decode, String(data=" " * (2**20 + 1)), "data", "cap 1048576"),
     ("st-two-entries", Status.decode, status_msg(ST, 2), "status", "exactly 1"),
     ("st-missing-state", Status.decode, status_msg(ST[:2]), "state", "missing"),
     (
@@ -536,19 +538,121 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
 ]
 
 
+_R = DecodeReason
+REASONS: dict[str, DecodeReason] = {
+    "cand-wrong-length": _R.WRONG_SHAPE,
+    "cand-nan": _R.NON_FINITE,
+    "cand-inf": _R.NON_FINITE,
+    "cand-negative-id": _R.MALFORMED,
+    "cand-float-id": _R.MALFORMED,
+    "cand-leading-zero-id": _R.MALFORMED,
+    "cand-id-overflow": _R.OUT_OF_BOUNDS,
+    "cand-wrong-run": _R.WRONG_RUN,
+    "cand-bad-run-id": _R.MALFORMED,
+    "cand-above-bound": _R.OUT_OF_BOUNDS,
+    "cand-below-bound": _R.OUT_OF_BOUNDS,
+    "cand-huge": _R.TOO_LARGE,
+    "cand-huge-default-cap": _R.TOO_LARGE,
+    "cand-empty": _R.WRONG_SHAPE,
+    "cand-missing-key": _R.MALFORMED,
+    "cand-extra-key": _R.MALFORMED,
+    "cand-dup-key": _R.MALFORMED,
+    "cand-not-kv": _R.MALFORMED,
+    "cand-wrong-kind": _R.MALFORMED,
+    "cand-size-mismatch": _R.INCONSISTENT,
+    "cand-two-dims": _R.MALFORMED,
+    "cand-offset": _R.MALFORMED,
+    "cand-wrong-type": _R.WRONG_TYPE,
+    "cand-none": _R.WRONG_TYPE,
+    "inc-wrong-kind": _R.MALFORMED,
+    "inc-negative-duels": _R.MALFORMED,
+    "ep-missing-return": _R.MALFORMED,
+    "ep-nan-return": _R.NON_FINITE,
+    "ep-inf-return": _R.NON_FINITE,
+    "ep-text-return": _R.MALFORMED,
+    "ep-bad-status": _R.MALFORMED,
+    "ep-failed-no-error": _R.MALFORMED,
+    "ep-failed-level-ok": _R.INCONSISTENT,
+    "ep-unknown-key": _R.MALFORMED,
+    "ep-dup-key": _R.MALFORMED,
+    "ep-negative-id": _R.MALFORMED,
+    "ep-wrong-run": _R.WRONG_RUN,
+    "ep-wrong-name": _R.MALFORMED,
+    "ep-too-many-values": _R.TOO_LARGE,
+    "ep-long-value": _R.TOO_LARGE,
+    "ep-wrong-type": _R.WRONG_TYPE,
+    "req-self-duel": _R.INCONSISTENT,
+    "req-missing": _R.MALFORMED,
+    "req-hex-id": _R.MALFORMED,
+    "req-space-id": _R.MALFORMED,
+    "req-wrong-run": _R.WRONG_RUN,
+    "out-winner-not-in-duel": _R.INCONSISTENT,
+    "out-winner-is-loser": _R.INCONSISTENT,
+    "out-decisive-no-loser": _R.MALFORMED,
+    "out-indifferent-with-winner": _R.MALFORMED,
+    "out-failed-no-reason": _R.MALFORMED,
+    "out-failed-empty-reason": _R.MALFORMED,
+    "out-unknown-kind": _R.MALFORMED,
+    "out-wrong-run": _R.WRONG_RUN,
+    "cfg-not-json": _R.MALFORMED,
+    "cfg-nan": _R.NON_FINITE,
+    "cfg-dup-key": _R.MALFORMED,
+    "cfg-array": _R.WRONG_TYPE,
+    "cfg-missing": _R.MALFORMED,
+    "cfg-extra": _R.MALFORMED,
+    "cfg-schema": _R.MALFORMED,
+    "cfg-dim-mismatch": _R.WRONG_SHAPE,
+    "cfg-empty-box": _R.INCONSISTENT,
+    "cfg-negative-seed": _R.OUT_OF_BOUNDS,
+    "cfg-bool-dim": _R.WRONG_TYPE,
+    "cfg-float-budget": _R.WRONG_TYPE,
+    "cfg-string-bound": _R.WRONG_TYPE,
+    "cfg-options-list": _R.WRONG_TYPE,
+    "cfg-wrong-run": _R.WRONG_RUN,
+    "cfg-huge": _R.TOO_LARGE,
+    "st-two-entries": _R.MALFORMED,
+    "st-missing-state": _R.MALFORMED,
+    "st-negative-counter": _R.MALFORMED,
+    "st-unknown-key": _R.MALFORMED,
+    "st-bad-node": _R.MALFORMED,
+    "st-wrong-run": _R.WRONG_RUN,
+}
+"""The reason each rejection of CASES carries (nodes count drops by it)."""
+
+
 @pytest.mark.parametrize(
-    ("decoder", "msg", "field", "problem"),
-    [c[1:] for c in CASES],
+    ("decoder", "msg", "field", "problem", "reason"),
+    [(*c[1:], REASONS[c[0]]) for c in CASES],
     ids=[c[0] for c in CASES],
 )
 def test_rejections_name_the_problem(
-    decoder: Callable[[Any], Any], msg: Any, field: str, problem: str
+    decoder: Callable[[Any], Any], msg: Any, field: str, problem: str, reason: DecodeReason
 ) -> None:
     result = decoder(msg)
     assert isinstance(result, DecodeError), result
     assert result.field == field, str(result)
+    assert result.reason is reason, str(result)
     assert problem in result.problem, str(result)
     assert field in str(result)
+
+
+def test_every_reason_is_exercised_and_every_case_has_one() -> None:
+    assert set(REASONS) == {c[0] for c in CASES}
+    assert set(REASONS.values()) == set(DecodeReason)
+
+
+def test_undecodable_message_is_malformed() -> None:
+    class Exploding(Float64MultiArray):
+        def __init__(self) -> None:  # no field set up: any read below raises
+            pass
+
+        @property
+        def layout(self) -> Any:
+            raise RuntimeError("boom")
+
+    result = CandidateMsg.decode(Exploding())
+    assert isinstance(result, DecodeError)
+    assert result.reason is DecodeReason.MALFORMED and "undecodable" in result.problem
 
 
 def test_rejection_survives_cdr() -> None:
@@ -587,8 +691,9 @@ def test_good_messages_built_by_hand_decode() -> None:
     ],
 )
 def test_encoders_raise_value_error(build: Callable[[], Any], text: str) -> None:
-    with pytest.raises(ValueError, match=re.escape(text)):
+    with pytest.raises(ValueError, match=re.escape(text)) as info:
         build()
+    assert isinstance(info.value, FieldError) and isinstance(info.value.reason, DecodeReason)
 
 
 def test_decoders_never_raise_on_garbage() -> None:

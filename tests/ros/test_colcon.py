@@ -1,5 +1,5 @@
 """``colcon build`` of ros_ws into a temp dir: the layout ``ros2 run`` relies on, and each
-executable launched from there (DESIGN.md §8)."""
+executable launched from there."""
 
 from __future__ import annotations
 

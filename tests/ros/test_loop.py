@@ -9,7 +9,7 @@ from collections import Counter
 from localpbo_ros.bagtools import load_run
 from localpbo_ros.optimizer_node import OptimizerNode
 from localpbo_ros.oracle_node import OracleNode
-from localpbo_ros.recorder import RecorderNode
+from localpbo_ros.recorder_node import RecorderNode
 from localpbo_ros.replay import play, qos_from_metadata, verify
 from localpbo_ros.sim_node import SimNode
 from localpbo_ros.suite import run_suite

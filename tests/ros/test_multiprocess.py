@@ -50,7 +50,11 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
             cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
         )
 
-    helpers = [start("recorder", "-p", f"path:={bag}"), start("sim_node"), start("oracle_node")]
+    helpers = [
+        start("recorder_node", "-p", f"path:={bag}"),
+        start("sim_node"),
+        start("oracle_node"),
+    ]
     try:
         # start the optimizer once the recorder hears simulator and oracle (discovery done)
         deadline = time.monotonic() + 60
@@ -61,7 +65,7 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
                     status = Status.decode(rec.message)
                     if isinstance(status, Status):
                         heard.add(status.node)
-            if {"simulator", "oracle"} <= heard:
+            if {"sim_node", "oracle_node"} <= heard:
                 break
             time.sleep(0.1)
         opt = subprocess.run(

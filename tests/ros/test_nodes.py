@@ -118,8 +118,16 @@ def test_sim_node_evaluates_by_id_and_drops_bad_input(ros) -> None:
     assert ros.spin_until(
         lambda: sum(v for k, v in sim.counters.items() if k.startswith("dropped_")) == 7, 10
     )
-    assert sim.counters["dropped_wrong_run"] == 1
-    assert sim.counters["dropped_conflicting_candidate"] == 1
+    dropped = {k: v for k, v in sim.counters.items() if k.startswith("dropped_")}
+    assert dropped == {  # counted by the decoder's reason, one each
+        "dropped_wrong_run": 1,
+        "dropped_wrong_shape": 1,
+        "dropped_non_finite": 1,
+        "dropped_out_of_bounds": 1,
+        "dropped_conflicting_candidate": 1,
+        "dropped_too_large": 1,
+        "dropped_malformed": 1,
+    }
     ros.spin_for(0.2)
     assert len(results) == n_before and sorted(calls) == [0, 1, 2, 3]
 
@@ -258,8 +266,10 @@ def test_optimizer_node_against_scripted_oracle_and_hostile_outcomes(ros) -> Non
     statuses = ros.collect(STATUS)
     ros.spin_for(0.2)
     opt.publish_status()
-    assert ros.spin_until(lambda: any(Status.decode(m).node == "optimizer" for m in statuses), 5)
-    reported = [Status.decode(m) for m in statuses if Status.decode(m).node == "optimizer"][-1]
+    assert ros.spin_until(
+        lambda: any(Status.decode(m).node == "optimizer_node" for m in statuses), 5
+    )
+    reported = [Status.decode(m) for m in statuses if Status.decode(m).node == "optimizer_node"][-1]
     assert reported.state == "done" and reported.run_id == "t1"
     assert reported.counters["dropped_wrong_run"] == 1
     assert reported.counters["dropped_repeated"] == 1 and reported.counters["duels_done"] == 7

@@ -104,13 +104,8 @@ def from_four_processes(tmp_path: Path) -> dict[str, Any]:
             cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
         )
 
-    recorder_module = (
-        "recorder_node"
-        if (Path(load_run.__code__.co_filename).parent / "recorder_node.py").exists()
-        else "recorder"
-    )
     helpers = [
-        start(recorder_module, "-p", f"path:={bag}"),
+        start("recorder_node", "-p", f"path:={bag}"),
         start("sim_node", "-p", "run_id:=paths"),
         start("oracle_node", "-p", "run_id:=paths"),
     ]
@@ -121,7 +116,7 @@ def from_four_processes(tmp_path: Path) -> dict[str, Any]:
             if bag.exists():
                 for rec in read_messages(bag, topics=[STATUS.name]):
                     status = Status.decode(rec.message)
-                    if isinstance(status, Status) and "recorder" not in status.node:
+                    if isinstance(status, Status) and status.node != "recorder_node":
                         heard.add(status.node)
             if len(heard) >= 2:
                 break

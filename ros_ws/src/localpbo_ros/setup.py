@@ -23,7 +23,7 @@ setup(
             f"optimizer_node = {PACKAGE}.optimizer_node:main",
             f"sim_node = {PACKAGE}.sim_node:main",
             f"oracle_node = {PACKAGE}.oracle_node:main",
-            f"recorder_node = {PACKAGE}.recorder:main",
+            f"recorder_node = {PACKAGE}.recorder_node:main",
         ],
     },
 )

@@ -1,7 +1,9 @@
-"""Shared node plumbing: drop counters, the status topic, suite publishers/subscriptions."""
+"""Shared node plumbing: drop counters, throttled warnings, the status topic, suite
+publishers/subscriptions, and the parameter services."""
 
 from __future__ import annotations
 
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
@@ -10,23 +12,62 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from localpbo_msgs_py import Status
+from localpbo_msgs_py import DecodeError, Status
 from localpbo_msgs_py.topics import STATUS, TopicSpec
 from localpbo_ros.params import Param, declare
 
 NO_RUN = "none"
 """Run id reported in status messages before a node knows its run."""
 
+WARN_PERIOD_S = 5.0
+"""A node logs at most one warning per key (e.g. per drop reason) in this many seconds."""
+
+
+class WarningThrottle:
+    """At most one log line per key per ``period_s``; counts the lines it held back.
+
+    Args:
+        period_s: seconds between two lines of the same key.
+        clock: monotonic seconds (tests pass their own).
+    """
+
+    def __init__(self, period_s: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.period_s = period_s
+        self.clock = clock
+        self._last: dict[str, float] = {}
+        self._held: Counter[str] = Counter()
+
+    def admit(self, key: str) -> int | None:
+        """``None`` when a line for ``key`` is held back; else how many were held back since
+        the previous line of ``key`` (the caller logs now and says so)."""
+        now = self.clock()
+        last = self._last.get(key)
+        if last is not None and now - last < self.period_s:
+            self._held[key] += 1
+            return None
+        self._last[key] = now
+        return self._held.pop(key, 0)
+
+    def held(self) -> dict[str, int]:
+        """Lines held back and not yet reported, by key."""
+        return dict(self._held)
+
 
 class SuiteNode(Node):
     """A node of the suite: declared parameters, counters and a status publisher.
 
+    The node serves the standard parameter services (``ros2 param list/get/describe/set``);
+    every declared parameter is read-only, so a ``set`` is refused.
+
     Args:
-        name: node name.
+        name: node name (the executable's name; ``--ros-args -r __node:=other`` renames it).
         params: declared parameters (see :mod:`localpbo_ros.params`).
         context: the rclpy context (a private one in tests and ``localpbo run``).
         overrides: parameter values, as ``--ros-args -p`` would give them.
         cli_args: ROS command-line arguments (remapping, parameters).
+        status_period_s: seconds between two status messages.
+        warn_period_s: seconds between two warnings of the same kind (see
+            :class:`WarningThrottle`); counters stay exact.
     """
 
     def __init__(
@@ -38,16 +79,18 @@ class SuiteNode(Node):
         overrides: dict[str, Any] | None = None,
         cli_args: list[str] | None = None,
         status_period_s: float = 1.0,
+        warn_period_s: float = WARN_PERIOD_S,
     ) -> None:
         super().__init__(
             name,
             context=context,
             cli_args=cli_args,
             parameter_overrides=[Parameter(k, value=v) for k, v in (overrides or {}).items()],
-            start_parameter_services=False,
+            start_parameter_services=True,
         )
         self.settings = declare(self, params)
         self.counters: Counter[str] = Counter()
+        self.warnings = WarningThrottle(warn_period_s)
         self.state = "starting"
         self.status_run_id = NO_RUN
         self._status_pub = self.create_publisher(STATUS.msg_type, STATUS.name, STATUS.qos)
@@ -61,10 +104,24 @@ class SuiteNode(Node):
         """A subscription on a suite topic with its QoS."""
         return self.create_subscription(spec.msg_type, spec.name, callback, spec.qos)
 
+    def warn(self, key: str, text: str) -> None:
+        """Log ``text`` as a warning unless a warning of ``key`` was logged within
+        ``warn_period_s``; the next line that is logged says how many were held back."""
+        held = self.warnings.admit(key)
+        if held is None:
+            return
+        if held:
+            text += f" ({held} similar warnings suppressed since the last one)"
+        self.get_logger().warning(text)
+
     def drop(self, reason: str, detail: str) -> None:
-        """Drop a bad message: count it (``dropped_<reason>``) and warn."""
+        """Drop a bad message: count it (``dropped_<reason>``) and warn (throttled)."""
         self.counters[f"dropped_{reason}"] += 1
-        self.get_logger().warning(f"dropped message ({reason}): {detail}")
+        self.warn(f"dropped_{reason}", f"dropped message ({reason}): {detail}")
+
+    def drop_decode(self, error: DecodeError) -> None:
+        """Drop a message its decoder refused, counted by the decoder's reason."""
+        self.drop(error.reason.value, str(error))
 
     def publish_status(self, level: int = 0, message: str = "") -> None:
         """Publish state and counters on ``/localpbo/status``."""

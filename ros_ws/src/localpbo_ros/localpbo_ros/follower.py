@@ -61,7 +61,7 @@ class FollowerNode(SuiteNode, abc.ABC):
         wanted = self.settings["run_id"] or None
         decoded = RunConfig.decode(msg, expected_run_id=wanted)
         if isinstance(decoded, DecodeError):
-            self.drop("wrong_run" if "wrong run" in decoded.problem else "malformed", str(decoded))
+            self.drop_decode(decoded)
             return
         if self.config is not None:
             if decoded.run_id == self.config.run_id:

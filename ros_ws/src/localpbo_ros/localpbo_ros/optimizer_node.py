@@ -216,7 +216,7 @@ class OptimizerNode(SuiteNode):
         resume_outcomes: Sequence[DuelOutcome] = (),
     ) -> None:
         super().__init__(
-            "optimizer", PARAMS, context=context, overrides=overrides, cli_args=cli_args
+            "optimizer_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
         )
         self.config = config_from_settings(self.settings)
         self.status_run_id = self.config.run_id
@@ -312,7 +312,7 @@ class OptimizerNode(SuiteNode):
     def _on_outcome(self, msg: object) -> None:
         decoded = DuelOutcome.decode(msg, expected_run_id=self.config.run_id)
         if isinstance(decoded, DecodeError):
-            reason = "wrong_run" if "wrong run" in decoded.problem else "malformed"
+            reason = decoded.reason.value
             self.drop(reason, str(decoded))
             return
         if self.finished or not self._started:
@@ -356,7 +356,7 @@ class OptimizerNode(SuiteNode):
             return
         self._attempts[duel_id] = tries + 1
         self.counters["retries"] += 1
-        self.get_logger().warning(f"duel {duel_id} failed ({reason}); retry {tries + 1}")
+        self.warn("duel_retry", f"duel {duel_id} failed ({reason}); retry {tries + 1}")
         self._publish_pending()
         self._deadline = self._now() + self.settings["duel_timeout_s"]
 

@@ -47,7 +47,7 @@ class OracleNode(FollowerNode):
         overrides: dict[str, Any] | None = None,
         cli_args: list[str] | None = None,
     ) -> None:
-        super().__init__("oracle", [], context=context, overrides=overrides, cli_args=cli_args)
+        super().__init__("oracle_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._oracle: DuelOracle | None = None
         self._results: dict[int, EpisodeResult] = {}
         self._waiting: dict[int, DuelRequest] = {}
@@ -62,7 +62,7 @@ class OracleNode(FollowerNode):
         For reports only (``localpbo run``'s summary); the optimizer never sees returns.
         """
         res = self._results.get(candidate_id)
-        if res is None or res.status is not EpisodeStatus.OK:
+        if res is None or res.episode_return is None:
             return None
         return float(res.episode_return)
 
@@ -78,7 +78,7 @@ class OracleNode(FollowerNode):
         self._oracle = DuelOracle(build_problem(settings), settings.noise_fraction, settings.seed)
 
     def _reason(self, err: DecodeError) -> str:
-        return "wrong_run" if "wrong run" in err.problem else "malformed"
+        return err.reason.value
 
     # ------------------------------------------------------------------ callbacks
     def _on_result(self, msg: object) -> None:

@@ -2,7 +2,8 @@
 
 Every node setting is a read-only parameter with a description and, for numbers, a range
 (``IntegerRange``/``FloatingPointRange``) that rclpy enforces on override; choices and JSON
-texts are checked here. Any problem raises :class:`ParameterError` naming the parameter.
+texts are checked here. Any problem raises :class:`ParameterError` carrying the parameter's
+name and a :class:`ParameterReason`.
 """
 
 from __future__ import annotations
@@ -10,20 +11,49 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 
 INT_MAX = 2**31 - 1
 
 
-class ParameterError(ValueError):
-    """A node parameter was refused; the message names it."""
+class ParameterReason(StrEnum):
+    """Why a parameter value was refused."""
 
-    def __init__(self, name: str, problem: str) -> None:
+    WRONG_TYPE = "wrong_type"
+    """Not of the parameter's type (e.g. text for an integer)."""
+    OUT_OF_RANGE = "out_of_range"
+    """A number outside the declared range."""
+    NOT_A_CHOICE = "not_a_choice"
+    """Text that is not one of the allowed choices."""
+    BAD_JSON = "bad_json"
+    """Text that is not a JSON object."""
+    INVALID = "invalid"
+    """Refused by the node's own check (a run id, an option the algorithm does not take, a
+    directory that does not exist)."""
+
+
+class ParameterError(ValueError):
+    """A node parameter was refused.
+
+    Attributes:
+        name: the parameter.
+        reason: the kind of problem.
+        problem: what is wrong, for people (the message is
+            ``invalid parameter '<name>': <problem>``).
+    """
+
+    def __init__(
+        self, name: str, problem: str, reason: ParameterReason = ParameterReason.INVALID
+    ) -> None:
         super().__init__(f"invalid parameter '{name}': {problem}")
         self.name = name
+        self.reason = reason
+        self.problem = problem
 
 
 @dataclass(frozen=True)
@@ -58,23 +88,32 @@ class Param:
         """Validate a value (also the ranges, for values that bypassed ROS)."""
         if type(value) is not type(self.default):
             raise ParameterError(
-                self.name, f"expected {type(self.default).__name__}, got {value!r}"
+                self.name,
+                f"expected {type(self.default).__name__}, got {value!r}",
+                ParameterReason.WRONG_TYPE,
             )
-        if self.int_range is not None and not self.int_range[0] <= value <= self.int_range[1]:
-            raise ParameterError(self.name, f"{value} is outside {list(self.int_range)}")
-        if self.float_range is not None and not (
-            self.float_range[0] <= value <= self.float_range[1]
-        ):
-            raise ParameterError(self.name, f"{value} is outside {list(self.float_range)}")
+        for bounds in (self.int_range, self.float_range):
+            if bounds is not None and not bounds[0] <= value <= bounds[1]:
+                raise ParameterError(
+                    self.name, f"{value} is outside {list(bounds)}", ParameterReason.OUT_OF_RANGE
+                )
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(self.name, f"{value!r} is not one of {list(self.choices)}")
+            raise ParameterError(
+                self.name,
+                f"{value!r} is not one of {list(self.choices)}",
+                ParameterReason.NOT_A_CHOICE,
+            )
         if self.json_object:
             try:
                 obj = json.loads(value)
             except json.JSONDecodeError as exc:
-                raise ParameterError(self.name, f"not JSON: {exc}") from None
+                raise ParameterError(
+                    self.name, f"not JSON: {exc}", ParameterReason.BAD_JSON
+                ) from None
             if not isinstance(obj, dict):
-                raise ParameterError(self.name, 'must be a JSON object like {"key": 1}')
+                raise ParameterError(
+                    self.name, 'must be a JSON object like {"key": 1}', ParameterReason.BAD_JSON
+                )
             return obj
         return value
 
@@ -89,7 +128,11 @@ def declare(node: Node, params: Sequence[Param]) -> dict[str, Any]:
     for p in params:
         try:
             node.declare_parameter(p.name, p.default, p.descriptor())
-        except Exception as exc:  # rclpy raises several exception types for bad overrides
+        except InvalidParameterTypeException as exc:
+            raise ParameterError(p.name, str(exc), ParameterReason.WRONG_TYPE) from None
+        except InvalidParameterValueException as exc:  # outside the descriptor's range
+            raise ParameterError(p.name, str(exc), ParameterReason.OUT_OF_RANGE) from None
+        except Exception as exc:  # rclpy raises several other exception types
             raise ParameterError(p.name, f"{type(exc).__name__}: {exc}") from None
         values[p.name] = p.check(node.get_parameter(p.name).value)
     return values

@@ -47,7 +47,7 @@ class SimNode(FollowerNode):
         cli_args: list[str] | None = None,
         evaluator: Evaluator | None = None,
     ) -> None:
-        super().__init__("simulator", [], context=context, overrides=overrides, cli_args=cli_args)
+        super().__init__("sim_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._evaluator = evaluator
         self._problem: Any = None
         self._thetas: dict[int, tuple[float, ...]] = {}
@@ -85,7 +85,7 @@ class SimNode(FollowerNode):
             upper=config.upper,
         )
         if isinstance(cand, DecodeError):
-            self.drop("wrong_run" if "wrong run" in cand.problem else "malformed", str(cand))
+            self.drop(cand.reason.value, str(cand))
             return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:
@@ -106,7 +106,7 @@ class SimNode(FollowerNode):
             self.counters["episodes"] += 1
         except Exception as exc:  # any simulator error becomes a failed episode result
             self.counters["episodes_failed"] += 1
-            self.get_logger().warning(f"episode of candidate {cand.candidate_id} failed: {exc}")
+            self.warn("episode_failed", f"episode of candidate {cand.candidate_id} failed: {exc}")
             text = f"{type(exc).__name__}: {exc}"[:4000] or "error"
             result = EpisodeResult.failed(config.run_id, cand.candidate_id, text)
         self._pub.publish(result.encode())

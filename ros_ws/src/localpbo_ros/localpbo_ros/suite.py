@@ -30,7 +30,7 @@ from localpbo_ros.dds import in_process_scope
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.params import ParameterError
-from localpbo_ros.recorder import RecorderNode
+from localpbo_ros.recorder_node import RecorderNode
 from localpbo_ros.sim_node import Evaluator, SimNode
 from localpbo_ros.summary import RunSummary
 
@@ -66,7 +66,8 @@ def run_suite(
     settings = dict(settings)
     if resume is not None:
         recorded = load_run(resume)
-        kept = {k: settings[k] for k in ("duel_timeout_s", "republish_period_s") if k in settings}
+        timing = ("duel_timeout_s", "republish_period_s")
+        kept: dict[str, Any] = {k: settings[k] for k in timing if k in settings}
         settings = {**settings_from_config(recorded.config), **kept}
         outcomes = recorded.outcomes
     ctx = Context()

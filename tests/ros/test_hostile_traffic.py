@@ -1,0 +1,197 @@
+"""Floods of malformed and oversized messages: counters exact, log lines and bag size bounded."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from localpbo_ros.driver import make_run_config
+from localpbo_ros.oracle_node import OracleNode
+from localpbo_ros.recorder_node import PARAMS as RECORDER_PARAMS
+from localpbo_ros.recorder_node import RecorderNode
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from localpbo_msgs_py import DuelRequest, EpisodeResult, Incumbent, RunConfig, Status
+from localpbo_msgs_py._validate import MAX_ID, MAX_KEYVALUES, MAX_TEXT, MAX_THETA_LEN
+from localpbo_msgs_py.bag import read_messages, summarize
+from localpbo_msgs_py.limits import MAX_MESSAGE_BYTES, max_message_bytes
+from localpbo_msgs_py.run_config import MAX_CONFIG_BYTES
+from localpbo_msgs_py.topics import (
+    ALL_TOPICS,
+    CANDIDATE,
+    DUEL_REQUEST,
+    EPISODE_RESULT,
+    RUN_CONFIG,
+    STATUS,
+    TopicSpec,
+)
+
+from .conftest import SMALL_TASK
+
+RECORDER_DEFAULTS = {p.name: p.default for p in RECORDER_PARAMS}
+
+
+class FrozenClock:
+    """A monotonic clock the test moves by hand (the warning throttle reads it)."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def dropped(node: Any) -> int:
+    return sum(v for k, v in node.counters.items() if k.startswith("dropped_"))
+
+
+def flood(ros: Any, node: Any, sends: list[tuple[Any, Any]], total: Any) -> None:
+    """Publish in batches of 20 and let ``node`` take each batch (no history overflows)."""
+    for start in range(0, len(sends), 20):
+        batch = sends[start : start + 20]
+        target = total(node) + len(batch)
+        for spec, msg in batch:
+            ros.publish(spec, msg)
+        assert ros.spin_until(lambda t=target: total(node) == t, 20)
+
+
+def warning_lines(text: str, marker: str) -> list[str]:
+    return [line for line in text.splitlines() if marker in line]
+
+
+def oversized_request() -> DiagnosticStatus:
+    values = [KeyValue(key=f"k{i}", value="v") for i in range(65)]
+    return DiagnosticStatus(name="localpbo/duel_request", values=values)
+
+
+def test_oracle_flood_counts_exactly_and_logs_once_per_reason(ros: Any, capfd: Any) -> None:
+    oracle = ros.add(OracleNode(context=ros.ctx))
+    clock = FrozenClock()
+    oracle.warnings.clock = clock
+    config = make_run_config(
+        run_id="t1", algorithm="sobol", task="swimmer", seed=4, budget=8, task_options=SMALL_TASK
+    )
+    ros.publish(RUN_CONFIG, config.encode())
+    assert ros.spin_until(lambda: oracle.run_id == "t1", 5)
+    nan_result = EpisodeResult.ok("t1", 1, 1.0).encode()
+    for kv in nan_result.values:
+        if kv.key == "episode_return":
+            kv.value = "nan"
+    kinds = {
+        "wrong_run": (DUEL_REQUEST, DuelRequest("other", 0, 1, 2).encode()),
+        "malformed": (DUEL_REQUEST, DiagnosticStatus(name="localpbo/duel_request")),
+        "too_large": (DUEL_REQUEST, oversized_request()),
+        "non_finite": (EPISODE_RESULT, nan_result),
+    }
+    n_each = 60
+    sends = [kinds[k] for _ in range(n_each) for k in kinds]
+    capfd.readouterr()
+    flood(ros, oracle, sends, dropped)
+    expected = {f"dropped_{k}": n_each for k in kinds}
+    assert {k: v for k, v in oracle.counters.items() if k.startswith("dropped_")} == expected
+    lines = warning_lines(capfd.readouterr().err, "dropped message (")
+    assert len(lines) == len(kinds), lines  # one per reason, the rest held back
+    # after the throttle period the next line says how many were held back
+    clock.now += oracle.warnings.period_s
+    flood(ros, oracle, [kinds["wrong_run"]], dropped)
+    (line,) = warning_lines(capfd.readouterr().err, "dropped message (")
+    assert "(wrong_run)" in line and f"({n_each - 1} similar warnings suppressed" in line
+    # the status topic carries the exact counts
+    statuses = ros.collect(STATUS)
+    ros.spin_for(0.1)
+    oracle.publish_status()
+    assert ros.spin_until(lambda: bool(statuses), 5)
+    status = Status.decode(statuses[-1])
+    assert isinstance(status, Status)
+    assert status.counters["dropped_wrong_run"] == n_each + 1
+    assert status.counters["dropped_too_large"] == n_each
+
+
+def theta_message(n: int) -> Float64MultiArray:
+    msg = Float64MultiArray()
+    label = "kind=candidate;run=t1;candidate=1"
+    msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
+    msg.data = [0.5] * n
+    return msg
+
+
+def test_recorder_drops_oversized_and_caps_the_bag(ros: Any, tmp_path: Any, capfd: Any) -> None:
+    path = tmp_path / "flood.mcap"
+    cap = 200_000
+    recorder = ros.add(
+        RecorderNode(
+            context=ros.ctx,
+            overrides={"path": str(path), "max_message_bytes": 20_000, "max_bag_bytes": cap},
+            topics=[CANDIDATE],
+        )
+    )
+    recorder.warnings.clock = FrozenClock()
+    ros.publisher(CANDIDATE)
+    assert ros.spin_until(lambda: recorder.matched([CANDIDATE.name]), 5)
+
+    def handled(node: Any) -> int:
+        c = node.counters
+        return c["recorded"] + c["dropped_oversized"] + c["dropped_bag_full"]
+
+    legit = theta_message(1000)  # 8 kB: fits the message limit
+    huge = theta_message(10_000)  # 80 kB: above it
+    sends = [(CANDIDATE, huge if i % 3 == 0 else legit) for i in range(120)]
+    capfd.readouterr()
+    flood(ros, recorder, sends, handled)
+    c = recorder.counters
+    assert c["dropped_oversized"] == 40
+    assert c["recorded"] + c["dropped_bag_full"] == 80
+    assert c["dropped_bag_full"] > 0 and recorder.bag_full
+    err = capfd.readouterr().err
+    assert len(warning_lines(err, "dropped message (oversized)")) == 1
+    assert len(warning_lines(err, "max_bag_bytes")) == 1
+    recorder.close()
+    summary = summarize(path)
+    assert summary.complete
+    assert summary.message_count == c["recorded"]
+    # the cap holds for the data; closing adds the summary section (indexes, statistics)
+    assert path.stat().st_size <= cap + 16 * 1024
+    assert all(len(m.message.data) == 1000 for m in read_messages(path))
+
+
+WIDE = "\U0001f600"  # 4 bytes in UTF-8: the worst case per character
+RUN = "r" * 64
+
+
+def largest_valid_message(spec: TopicSpec) -> Any:
+    """The largest message of ``spec``'s type that its decoder accepts."""
+    if spec.type_name == "std_msgs/msg/Float64MultiArray":
+        theta = (0.5,) * MAX_THETA_LEN
+        msg = Incumbent(RUN, MAX_ID, theta, MAX_ID).encode()
+        assert isinstance(Incumbent.decode(msg), Incumbent)
+        return msg
+    if spec.type_name == "diagnostic_msgs/msg/DiagnosticStatus":
+        msg = EpisodeResult.failed(RUN, MAX_ID, WIDE * MAX_TEXT).encode()
+        msg.hardware_id = WIDE * MAX_TEXT
+        assert isinstance(EpisodeResult.decode(msg), EpisodeResult)
+        return msg
+    if spec.type_name == "diagnostic_msgs/msg/DiagnosticArray":
+        info = {f"{i:02d}".join(("x", "y" * 60)): WIDE * MAX_TEXT for i in range(MAX_KEYVALUES - 3)}
+        msg = Status(RUN, "n" * 64, "s" * 64, 3, WIDE * MAX_TEXT, {}, info, 2**62).encode()
+        msg.status[0].hardware_id = WIDE * MAX_TEXT
+        assert isinstance(Status.decode(msg), Status)
+        return msg
+    assert spec.type_name == "std_msgs/msg/String"
+    base = RunConfig(RUN, "a", "t", 1, (0.0,), (1.0,), 0, 1, {"pad": ""})
+    pad = MAX_CONFIG_BYTES - len(base.to_json().encode())
+    config = RunConfig(RUN, "a", "t", 1, (0.0,), (1.0,), 0, 1, {"pad": "x" * pad})
+    msg = config.encode()
+    assert len(msg.data.encode()) == MAX_CONFIG_BYTES
+    assert isinstance(RunConfig.decode(msg), RunConfig)
+    return msg
+
+
+@pytest.mark.parametrize("spec", ALL_TOPICS, ids=lambda s: s.key)
+def test_message_bounds_cover_the_largest_legitimate_messages(spec: TopicSpec) -> None:
+    """The bounds the recorder's default limit (2 x MAX_MESSAGE_BYTES) is made of lie above
+    every message a decoder accepts: the largest one of each topic, serialized."""
+    size = len(serialize_message(largest_valid_message(spec)))
+    assert size <= max_message_bytes(spec) <= MAX_MESSAGE_BYTES
+    assert RECORDER_DEFAULTS["max_message_bytes"] == 2 * MAX_MESSAGE_BYTES

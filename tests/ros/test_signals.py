@@ -1,0 +1,59 @@
+"""Stopping an executable with two signals (a second Ctrl-C, ``timeout``, a process-group kill):
+no traceback, exit 0, and the recorder's bag closed as complete."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from localpbo_msgs_py.bag import summarize
+
+
+@pytest.mark.parametrize(
+    ("module", "second", "gap_s"),
+    [
+        ("recorder_node", signal.SIGINT, 0.0),
+        ("recorder_node", signal.SIGINT, 0.03),
+        ("recorder_node", signal.SIGINT, 0.1),
+        ("recorder_node", signal.SIGTERM, 0.05),
+        ("sim_node", signal.SIGINT, 0.05),
+    ],
+)
+def test_second_signal_still_stops_cleanly(
+    module: str, second: signal.Signals, gap_s: float, tmp_path: Path
+) -> None:
+    bag = tmp_path / "sig.mcap"
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF", "ROS_DOMAIN_ID": "62"}
+    cmd = [sys.executable, "-m", f"localpbo_ros.{module}"]
+    if module == "recorder_node":
+        cmd += ["--ros-args", "-p", f"path:={bag}"]
+    proc = subprocess.Popen(
+        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if " ready" in line:
+                break
+        assert any(" ready" in line for line in lines), "".join(lines)
+        proc.send_signal(signal.SIGINT)
+        time.sleep(gap_s)
+        proc.send_signal(second)
+        out = "".join(lines) + proc.stdout.read()
+        code = proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert code == 0, out
+    assert "Traceback" not in out, out
+    if module == "recorder_node":
+        assert summarize(bag).complete
