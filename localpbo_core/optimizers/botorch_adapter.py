@@ -29,7 +29,7 @@ from gpytorch.distributions import MultivariateNormal
 from linear_operator import to_linear_operator
 from torch import Tensor
 
-from localpbo_core.surrogate import PairwiseGPSurrogate
+from localpbo_core.surrogate import Surrogate
 from localpbo_core.surrogate.kernel import se_kernel, se_kernel_exact
 
 
@@ -45,7 +45,7 @@ class PosteriorCache:
     A: Tensor
 
     @classmethod
-    def from_surrogate(cls, surrogate: PairwiseGPSurrogate) -> PosteriorCache:
+    def from_surrogate(cls, surrogate: Surrogate) -> PosteriorCache:
         """Form ``alpha`` and ``A`` (Woodbury, see the module docstring)."""
         L, LB = surrogate.chol_K, surrogate.chol_B
         p = L.shape[0]
@@ -60,9 +60,7 @@ class PosteriorCache:
         return cls(surrogate.train_inputs, ls, float(surrogate.outputscale), alpha, A)
 
 
-def batched_mean_cov(
-    surrogate: PairwiseGPSurrogate | PosteriorCache, X: Tensor
-) -> tuple[Tensor, Tensor]:
+def batched_mean_cov(surrogate: Surrogate | PosteriorCache, X: Tensor) -> tuple[Tensor, Tensor]:
     """Joint posterior of ``f`` per t-batch (paper Sec. 4, eq. general_covariance_block).
 
     Args:
@@ -97,7 +95,7 @@ class SurrogateModel(Model):
     reads its dtype and device from ``pref_model.datapoints``.
     """
 
-    def __init__(self, surrogate: PairwiseGPSurrogate) -> None:
+    def __init__(self, surrogate: Surrogate) -> None:
         super().__init__()
         self.surrogate = surrogate
         self.cache = PosteriorCache.from_surrogate(surrogate)
@@ -140,5 +138,5 @@ class SurrogateModel(Model):
         )
         post = GPyTorchPosterior(mvn)
         if posterior_transform is not None:
-            return posterior_transform(post)  # type: ignore[return-value]
+            return posterior_transform(post)
         return post

@@ -25,7 +25,7 @@ import torch
 from torch import Tensor
 
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
-from localpbo_core.surrogate.pairwise_gp import PairwiseGPSurrogate
+from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.surrogate.virtual_refit import gradient_covariance_trace, virtual_refit
 
 #: Paper App. C.2: radii of the hyperspheres for d > 2 and the search bounds.
@@ -92,7 +92,7 @@ def _match_index(points: Tensor, x: Tensor) -> int | None:
 
 @torch.no_grad()
 def gi_pbo_acquisition(
-    surrogate: PairwiseGPSurrogate,
+    surrogate: Surrogate,
     centre: Tensor,
     candidates: Tensor,
     opponent: Tensor,

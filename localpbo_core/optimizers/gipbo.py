@@ -165,7 +165,7 @@ class GIPBO(LocalPhaseOptimizer):
             else self._centre_theta
         )
         acq = gi_pbo_acquisition(
-            surrogate,  # type: ignore[arg-type]
+            surrogate,
             torch.tensor(self._centre_theta, dtype=torch.float64),
             torch.tensor(cands, dtype=torch.float64),
             torch.tensor(opp, dtype=torch.float64),
@@ -194,8 +194,8 @@ class GIPBO(LocalPhaseOptimizer):
         surrogate = self._fit()
         assert self._centre_theta is not None
         x = torch.tensor(self._centre_theta, dtype=torch.float64)
-        g = surrogate.mean_gradient(x).detach().numpy()  # type: ignore[attr-defined]
-        ls = surrogate.lengthscale.detach().numpy()  # type: ignore[attr-defined]
+        g = surrogate.mean_gradient(x).detach().numpy()
+        ls = surrogate.lengthscale.detach().numpy()
         step = normalized_gradient_step(g, ls, self.step_size, self.min_step)
         self._move_centre(self._centre_theta + step)
 

@@ -39,8 +39,7 @@ import importlib
 import inspect
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from types import ModuleType
-from typing import Any
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -55,7 +54,14 @@ from localpbo_core.optimizers.preference_optimizer import (
 GLISP_INIT_TAG = 0x611F
 
 
-def _glis_solvers() -> ModuleType:
+class _GlisSolvers(Protocol):
+    """What this wrapper uses of the untyped module ``glis.solvers``."""
+
+    GLISp: Callable[..., Any]
+    pso: Callable[..., Any]
+
+
+def _glis_solvers() -> _GlisSolvers:
     """Import ``glis.solvers``. glis 2.0.2 does ``from pyDOE import lhs``, but pydoe >= 1.6
     renamed its module to ``pydoe``; if only the new name exists it is aliased (glis's ``lhs``
     is never called here: the initial points are supplied by this wrapper)."""
@@ -63,7 +69,7 @@ def _glis_solvers() -> ModuleType:
         importlib.import_module("pyDOE")
     except ModuleNotFoundError:
         sys.modules["pyDOE"] = importlib.import_module("pydoe")
-    return importlib.import_module("glis.solvers")
+    return cast(_GlisSolvers, importlib.import_module("glis.solvers"))
 
 
 def _pso_with_seed(pso: Callable[..., Any], seed: int) -> Callable[..., tuple[Any, Any]]:
@@ -174,7 +180,7 @@ class GLISpOptimizer(PreferenceOptimizer):
             glis.X = [row.copy() for row in initial]
             return (initial - glis.d0) / glis.dd  # glis works in [-1, 1]^d
 
-        self._glis.initialize_ = _initial_samples  # type: ignore[method-assign]
+        self._glis.initialize_ = _initial_samples
         self._glis.initialize()
         self._fed = 0  # outcomes passed to glis so far
 

@@ -28,6 +28,7 @@ import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
 
 
@@ -65,7 +66,7 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         self._centre_pending = False  # a step centre not evaluated yet
         self._local_inc_id: int | None = None  # None while the centre is pending
         self._final_centre_duel = False
-        self._surrogate: object | None = None
+        self._surrogate: Surrogate | None = None
         self._fit_key: tuple[int, int] | None = None
         #: Number of steps whose new centre was evaluated (``G`` of App. D.1).
         self.gradient_steps = 0
@@ -79,7 +80,7 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         return self._centre_theta
 
     @property
-    def surrogate(self) -> object | None:
+    def surrogate(self) -> Surrogate | None:
         """The last fitted surrogate."""
         return self._surrogate
 
@@ -90,11 +91,9 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
             return self._centre_theta
         return np.array(self._candidates[self._local_inc_id].theta)
 
-    def _fit(self) -> object:
+    def _fit(self) -> Surrogate:
         """Refit the pairwise GP on all duels, hyperparameters learned (warm-started from the
         previous fit). Reuses the previous fit when no candidate or duel was added."""
-        from localpbo_core.surrogate import PairwiseGPSurrogate
-
         key = (len(self._candidates), len(self._outcomes))
         if self._surrogate is not None and key == self._fit_key:
             return self._surrogate
@@ -102,8 +101,9 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         X = torch.tensor(self.train_inputs(), dtype=torch.float64)
         comps = torch.tensor(self.comparisons(), dtype=torch.long)
         prev = self._surrogate
-        self._surrogate = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)  # type: ignore[arg-type]
-        return self._surrogate
+        fitted = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)
+        self._surrogate = fitted
+        return fitted
 
     # ------------------------------------------------------------------ ask
     def _propose(self, remaining: int) -> Ask:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.surrogate.protocol import Surrogate
 
 #: Tag mixed into the seed of the shared initial design; independent of the algorithm.
 INITIAL_DESIGN_TAG = 0x1D51
@@ -186,6 +187,12 @@ class PreferenceOptimizer(abc.ABC):
         return History(tuple(self._candidates), tuple(self._duels), tuple(self._outcomes))
 
     @property
+    def surrogate(self) -> Surrogate | None:
+        """The optimizer's last fitted preference model; None if it keeps none (Sobol,
+        GLISp) or has not fitted one yet."""
+        return None
+
+    @property
     def in_initial_design(self) -> bool:
         """True while the shared initial design is being evaluated and dueled."""
         return self.evaluations_used < self.initial_design or (
@@ -237,11 +244,7 @@ class PreferenceOptimizer(abc.ABC):
             except BaseException:
                 del self._candidates[n:]  # a failed ask leaves no trace
                 raise
-        self._pending = list(ask.duels)
-        self._duels.extend(ask.duels)
-        self._step_outcomes = []
-        self._step_candidates = ask.candidates
-        return ask
+        return self._open_step(ask)
 
     def tell(self, outcomes: Iterable[Outcome]) -> None:
         """Record duel outcomes (a subset or all of the pending duels).
@@ -276,6 +279,19 @@ class PreferenceOptimizer(abc.ABC):
             self._step += 1
 
     # ------------------------------------------------------------------ helpers
+    def _open_step(self, ask: Ask) -> Ask:
+        """Make ``ask`` the current step: its duels become pending and are logged, and its
+        candidates are handed to :meth:`_on_step_complete` once every duel is answered.
+
+        :meth:`ask` calls it for every ask it builds; a subclass that asks follow-up duels
+        without new candidates (qEUBO's bracket rounds) calls it with ``Ask((), duels)``.
+        """
+        self._pending = list(ask.duels)
+        self._duels.extend(ask.duels)
+        self._step_outcomes = []
+        self._step_candidates = ask.candidates
+        return ask
+
     def _match(self, out: object, pending: list[Duel]) -> Duel:
         """Find the pending duel answered by ``out`` or raise InvalidOutcome.
 

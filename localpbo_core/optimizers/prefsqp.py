@@ -34,6 +34,7 @@ from localpbo_core.optimizers.local_phase import (
     check_float,
 )
 from localpbo_core.optimizers.preference_optimizer import check_int, step_generator
+from localpbo_core.surrogate import Surrogate
 
 LINE_SEARCHES = ("thompson", "full", "eubo")
 _MAX_REJECTION_ROUNDS = 1000
@@ -155,8 +156,8 @@ class PrefSQP(LocalPhaseOptimizer):
         surrogate = self._fit()
         assert self._centre_theta is not None
         x = torch.tensor(self._centre_theta, dtype=torch.float64)
-        g = surrogate.mean_gradient(x).detach().numpy()  # type: ignore[attr-defined]
-        H = surrogate.mean_hessian(x).detach().numpy()  # type: ignore[attr-defined]
+        g = surrogate.mean_gradient(x).detach().numpy()
+        H = surrogate.mean_hessian(x).detach().numpy()
         if not (np.all(np.isfinite(g)) and np.all(np.isfinite(H))) or not np.any(g):
             p = np.zeros(self.dim)
         else:
@@ -166,7 +167,7 @@ class PrefSQP(LocalPhaseOptimizer):
         self._move_centre(self._line_search(surrogate, self._centre_theta, p, rng))
 
     def _line_search(
-        self, surrogate: object, x: np.ndarray, p: np.ndarray, rng: np.random.Generator
+        self, surrogate: Surrogate, x: np.ndarray, p: np.ndarray, rng: np.random.Generator
     ) -> np.ndarray:
         """Select the next iterate on the line (module docstring)."""
         if self.line_search == "full":
@@ -176,10 +177,10 @@ class PrefSQP(LocalPhaseOptimizer):
         with torch.no_grad():
             if self.line_search == "thompson":
                 gen = torch.Generator().manual_seed(int(rng.integers(0, 2**62)))
-                path = surrogate.sample_paths(1, gen, num_features=self.num_features)  # type: ignore[attr-defined]
+                path = surrogate.sample_paths(1, gen, num_features=self.num_features)
                 values = path(pts_t)[:, 0]
             else:
                 both = torch.cat([torch.tensor(x, dtype=torch.float64)[None], pts_t])
-                mean, cov = surrogate.posterior_mean_cov(both)  # type: ignore[attr-defined]
+                mean, cov = surrogate.posterior_mean_cov(both)
                 values = eubo_from_moments(mean, cov)
         return pts[int(torch.argmax(values))]

@@ -28,8 +28,7 @@ def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
         return optimizer.incumbent
     X = torch.tensor(optimizer.train_inputs(), dtype=torch.float64)
     # the optimizer's own last fit (TuRPBO, qEUBO, ...) is a warm start: one refit, not a cold fit
-    previous = getattr(optimizer, "surrogate", None)
-    warm = previous if isinstance(previous, PairwiseGPSurrogate) else None
+    warm = optimizer.surrogate
     if warm is not None and warm.dim != X.shape[1]:
         warm = None
     surrogate = PairwiseGPSurrogate.fit(

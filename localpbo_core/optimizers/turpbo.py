@@ -42,6 +42,7 @@ from localpbo_core.optimizers.trust_region import (
     perturbed_candidates,
     trust_region_bounds,
 )
+from localpbo_core.surrogate.protocol import Surrogate
 
 ACQUISITIONS = ("ts", "qeubo")
 
@@ -118,12 +119,12 @@ class TuRPBO(PreferenceOptimizer):
         return self._candidates[self._center_id]
 
     @property
-    def surrogate(self) -> object | None:
+    def surrogate(self) -> Surrogate | None:
         """The last fitted surrogate (None before the first TuRPBO iteration)."""
         return self._refitter.surrogate
 
     # ------------------------------------------------------------------ model
-    def _fit(self) -> object:
+    def _fit(self) -> Surrogate:
         return self._refitter.refit(self.train_inputs(), self.comparisons())
 
     # ------------------------------------------------------------------ ask / tell hooks
@@ -149,20 +150,18 @@ class TuRPBO(PreferenceOptimizer):
     def _select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Candidates in the trust region (App. C.5, Alg. TurPBO lines 4-6)."""
         surrogate = self._fit()
-        center = self._candidates[self._center_id].theta  # type: ignore[index]
-        ls = surrogate.lengthscale  # type: ignore[attr-defined]
-        ls = ls.detach().numpy() if isinstance(ls, torch.Tensor) else np.asarray(ls)
+        assert self._center_id is not None  # set by _propose before selecting
+        center = self._candidates[self._center_id].theta
+        ls = surrogate.lengthscale.detach().numpy()
         lb, ub = trust_region_bounds(center, ls.reshape(-1), self.tr.length)
         raw = perturbed_candidates(center, lb, ub, self.num_raw_samples, rng)
         gen = torch.Generator().manual_seed(int(rng.integers(0, 2**62)))
         if self.acquisition == "ts":
-            path = surrogate.sample_paths(  # type: ignore[attr-defined]
-                q, gen, num_features=self.num_features
-            )
+            path = surrogate.sample_paths(q, gen, num_features=self.num_features)
             return thompson_batch(path, raw, lb, ub, num_restarts=self.num_restarts)
         base = torch.randn(self.num_mc_samples, q + 1, generator=gen, dtype=torch.float64)
         return eubo_batch(
-            surrogate.posterior_mean_cov,  # type: ignore[attr-defined]
+            surrogate.posterior_mean_cov,
             center,
             raw,
             lb,

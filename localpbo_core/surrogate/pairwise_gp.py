@@ -26,6 +26,7 @@ from .hyperparameters import (
 )
 from .kernel import kernel_derivatives, prior_block, se_kernel, se_kernel_exact
 from .laplace import hessian_weights, likelihood_hessian, probit_terms, whitened_precision
+from .protocol import Surrogate
 
 # The start of a cold fit: BoTorch's initial values under the paper's constraints (raw
 # parameter 0 of Interval(0.05, 0.5) and Interval(0.005, 200), i.e. the interval midpoints).
@@ -70,7 +71,7 @@ def _check_outputscale(outputscale: object) -> float | None:
     return value
 
 
-class PairwiseGPSurrogate:
+class PairwiseGPSurrogate(Surrogate):
     """Laplace-approximated pairwise GP with derivative-aware posterior (paper Sec. 4).
 
     Build with :meth:`fit`. Attributes: ``lengthscale`` ``(d,)``, ``outputscale`` (float),
@@ -141,7 +142,7 @@ class PairwiseGPSurrogate:
         comparisons: Tensor,
         lengthscale: float | Tensor | None = None,
         outputscale: float | None = None,
-        warm_start: PairwiseGPSurrogate | None = None,
+        warm_start: Surrogate | None = None,
         *,
         z_limit: float | None = None,
         eps_reg: float = 0.0,

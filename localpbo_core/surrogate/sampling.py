@@ -37,7 +37,7 @@ from torch import Tensor
 from .kernel import se_kernel
 
 if TYPE_CHECKING:
-    from .pairwise_gp import PairwiseGPSurrogate
+    from .protocol import Surrogate
 
 
 class SamplePaths:
@@ -196,7 +196,7 @@ def _rff_values(x_aug: np.ndarray, w_aug: np.ndarray, aw: np.ndarray) -> np.ndar
 
 
 def draw_sample_paths(
-    surrogate: PairwiseGPSurrogate,
+    surrogate: Surrogate,
     num_paths: int,
     generator: torch.Generator,
     num_features: int = 1024,

@@ -43,7 +43,7 @@ from torch import Tensor
 
 from .kernel import kernel_derivatives, se_kernel_exact
 from .laplace import SQRT2
-from .pairwise_gp import PairwiseGPSurrogate
+from .protocol import Surrogate
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -82,9 +82,7 @@ def _chol_solve(b: Tensor, L: Tensor) -> Tensor:
     return torch.linalg.solve_triangular(L.transpose(-1, -2), y, upper=True)
 
 
-def _extended_rows(
-    surrogate: PairwiseGPSurrogate, new_points: Tensor, idx: Tensor
-) -> tuple[Tensor, Tensor]:
+def _extended_rows(surrogate: Surrogate, new_points: Tensor, idx: Tensor) -> tuple[Tensor, Tensor]:
     """Rows ``idx_b`` of the jittered extended kernel ``K([X; Z_b], [X; Z_b])``, split into the
     ``X`` part ``(B, p)`` and the ``Z`` part ``(B, k)``."""
     X, L = surrogate.train_inputs, surrogate.chol_K
@@ -111,7 +109,7 @@ def _extended_rows(
 
 @torch.no_grad()
 def virtual_refit(
-    surrogate: PairwiseGPSurrogate,
+    surrogate: Surrogate,
     new_points: Tensor,
     winners: Tensor,
     losers: Tensor,
@@ -265,7 +263,7 @@ def virtual_refit(
 
 
 @torch.no_grad()
-def gradient_covariance_trace(surrogate: PairwiseGPSurrogate, fit: VirtualFit, x: Tensor) -> Tensor:
+def gradient_covariance_trace(surrogate: Surrogate, fit: VirtualFit, x: Tensor) -> Tensor:
     """``tr Sigma_11(x | D_b)`` of eq. (PairwiseGP_Jac_variance) for every batch element:
 
     ``tr(s Lambda) - ||M^{-1/2} D^{1/2} H k_1||_F^2`` with ``k_1 = grad_x K(x, [X; Z_b])``
