@@ -3,7 +3,7 @@
 BoTorch's preference acquisitions (EUBO, Lin et al. 2022; qEUBO, Astudillo et al. 2023; the
 qEUBO baseline of paper Sec. 6 / App. D.1) only need ``model.posterior(X)`` — the joint
 Laplace posterior of the latent utility at the ``q`` points of each t-batch (paper Sec. 4,
-eq. general_covariance_block with a = b = 0):
+eq. (11) "general covariance block" with a = b = 0):
 
 ``mean = K(Xq, X) K^{-1} f_hat``,
 ``cov = K(Xq, Xq) - K(Xq, X) (K + C_hat^{-1})^{-1} K(X, Xq)``.
@@ -61,7 +61,7 @@ class PosteriorCache:
 
 
 def batched_mean_cov(surrogate: Surrogate | PosteriorCache, X: Tensor) -> tuple[Tensor, Tensor]:
-    """Joint posterior of ``f`` per t-batch (paper Sec. 4, eq. general_covariance_block).
+    """Joint posterior of ``f`` per t-batch (paper Sec. 4, eq. (11) "general covariance block").
 
     Args:
         surrogate: a fitted surrogate or its :class:`PosteriorCache`.

@@ -44,11 +44,8 @@ from typing import Any, Protocol, cast
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    check_int,
-    step_generator,
-)
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.validation import SettingError, check_float, check_int
 
 #: Tag mixed into the seed of GLISp's extra random initial points.
 GLISP_INIT_TAG = 0x611F
@@ -141,23 +138,14 @@ class GLISpOptimizer(PreferenceOptimizer):
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
         if isinstance(batch_size, bool) or batch_size != 1:
-            raise ValueError(f"batch_size: GLISp queries one point at a time, got {batch_size!r}")
-        for key, val in (
-            ("n_initial_random", n_initial_random),
-            ("pso_iters", pso_iters),
-            ("pso_swarm_size", pso_swarm_size),
-        ):
-            check_int(key, val)
-        if n_initial_random < 2:
-            raise ValueError(f"n_initial_random: must be >= 2, got {n_initial_random}")
-        if (
-            isinstance(delta, bool)
-            or not isinstance(delta, int | float)
-            or not np.isfinite(delta)
-            or delta < 0
-        ):
-            raise ValueError(f"delta: must be a finite number >= 0, got {delta!r}")
-        self.n_initial_random = max(int(n_initial_random), self.initial_design)
+            raise SettingError(
+                "batch_size", f"GLISp queries one point at a time, got {batch_size!r}"
+            )
+        n_initial_random = check_int("n_initial_random", n_initial_random, minimum=2)
+        pso_iters = check_int("pso_iters", pso_iters)
+        pso_swarm_size = check_int("pso_swarm_size", pso_swarm_size)
+        delta = check_float("delta", delta, minimum=0.0)
+        self.n_initial_random = max(n_initial_random, self.initial_design)
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, GLISP_INIT_TAG]))
         extra = rng.random((self.n_initial_random - self.initial_design, self.dim))
         self._glis_initial = np.vstack([self._design, extra])

@@ -46,13 +46,10 @@ from botorch.utils.sampling import manual_seed
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    check_int,
-    step_generator,
-)
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.surrogate.protocol import Surrogate
+from localpbo_core.validation import SettingError, check_int
 
 
 class QEUBO(PreferenceOptimizer):
@@ -94,7 +91,7 @@ class QEUBO(PreferenceOptimizer):
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
         if self.num_restarts > self.num_raw_samples:
-            raise ValueError("num_restarts: must not exceed num_raw_samples")
+            raise SettingError("num_restarts", "must not exceed num_raw_samples")
         self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []

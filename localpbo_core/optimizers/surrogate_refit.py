@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from localpbo_core.optimizers.preference_optimizer import check_int
 from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
+from localpbo_core.validation import check_int
 
 
 class SurrogateRefitter:

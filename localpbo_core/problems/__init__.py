@@ -1,4 +1,4 @@
-"""Problems (maximised on [0,1]^d) and the noisy preference oracle (paper Sec. 3 and 6).
+"""Problems (maximised on [0,1]^d) and the noisy preference oracle (paper Sec. 2 and 6).
 
 ``make_problem(name, **options)`` builds synthetic BoTorch functions (``hartmann6``,
 ``rosenbrock16``, ``levy32``, ``styblinskitang64``) and, lazily from ``localpbo_sims``, the

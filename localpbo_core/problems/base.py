@@ -44,7 +44,7 @@ class Problem(Protocol):
         """One evaluation (e.g. one episode) of theta; ``seed`` fixes its randomness.
 
         This is the value a real experiment would produce; the oracle adds its own
-        comparison noise on top (paper eq. noise).
+        comparison noise on top (paper eq. (2) "observation noise").
         """
         ...
 

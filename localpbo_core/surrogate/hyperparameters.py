@@ -131,7 +131,7 @@ def kernel_hyperparameter_gradient(
     * ``dK_j / dlog s = K_j``, so ``dE/dlog s = sum(G * K) + jitter * s * tr(G)``;
     * ``dK_ij / dlog l_k = K_ij (x_ik - x_jk)^2 / l_k^2``, so with ``P = G * K`` (symmetric) and
       ``y = x / l``: ``dE/dlog l_k = 2 (sum_i P_i. y_ik^2 - sum_i y_ik (P y)_ik)``, ``O(p^2 d)``.
-      ``X`` is centred first (translation invariance) to limit cancellation.
+      ``X`` is centered first (translation invariance) to limit cancellation.
 
     Returns ``(dE/dlog l (d,), dE/dlog s (0-d))``.
     """
