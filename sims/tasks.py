@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict, Unpack
 
 import numpy as np
 
@@ -262,6 +262,17 @@ class LinearPolicyTask:
         return value
 
 
-def make_task(name: str, **options: object) -> LinearPolicyTask:
+class TaskOptions(TypedDict, total=False):
+    """The keyword options of :class:`LinearPolicyTask` (all optional)."""
+
+    alive_bonus: bool
+    weight_low: float
+    weight_high: float
+    episode_steps: int
+    cache_size: int
+    value_range: float | None
+
+
+def make_task(name: str, **options: Unpack[TaskOptions]) -> LinearPolicyTask:
     """Create the linear-policy task ``name`` (options as ``LinearPolicyTask``)."""
-    return LinearPolicyTask(name, **options)  # type: ignore[arg-type]
+    return LinearPolicyTask(name, **options)
