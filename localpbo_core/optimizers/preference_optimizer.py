@@ -265,8 +265,8 @@ class PreferenceOptimizer(abc.ABC):
     def _match(self, out: object, pending: list[Duel]) -> Duel:
         """Find the pending duel answered by ``out`` or raise InvalidOutcome.
 
-        This is the single place where outcome kinds are dispatched: a win/loss
-        ``Outcome`` today; "indifferent" and "failed" outcome kinds will be added here.
+        This is the single place where outcome kinds are dispatched; the only kind is a
+        win/loss :class:`Outcome`.
         """
         if not isinstance(out, Outcome):
             raise InvalidOutcome("outcome", f"not an Outcome: {out!r}")
