@@ -230,17 +230,14 @@ class Session:
         )
 
     def oracle(self) -> DuelOracle:
-        """The simulated oracle of this run (per-duel seeds, the settings' noise)."""
+        """The simulated oracle of this run (per-duel seeds, the settings' noise).
+
+        Raises:
+            SettingError: ``noise_fraction`` > 0 for a problem without a value range.
+        """
         from localpbo_core.problems import DuelOracle
 
-        try:
-            return DuelOracle(self.problem, self.settings.noise_fraction, self.settings.seed)
-        except ValueError as exc:
-            raise SettingError(
-                "noise_fraction",
-                f"{self.settings.noise_fraction} needs a positive finite value range; "
-                f"problem {self.settings.problem!r} has {self.problem.value_range!r} ({exc})",
-            ) from None
+        return DuelOracle(self.problem, self.settings.noise_fraction, self.settings.seed)
 
     def pending(self) -> tuple[DuelRequest, ...]:
         """Duels of the current ask not answered yet, by duel id."""

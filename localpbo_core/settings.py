@@ -13,17 +13,29 @@ Every path (``localpbo bench``, ``localpbo run``, the ROS nodes, ``replay --veri
 * the budget ``initial design + 10 d`` evaluations (:func:`default_budget`; 62 on
   Hartmann 6, paper App. D.1 "Evaluation and comparison budgets").
 
-Bad settings raise :class:`SettingError`, which carries the offending field and the reason
-as data (``exc.field``, ``exc.reason``), so a caller maps the field to its own name (a CLI
-flag, a ROS parameter) without parsing text.
+Bad settings raise :class:`~localpbo_core.validation.SettingError`, which carries the
+offending field and the reason as data (``exc.field``, ``exc.reason``), so a caller maps the
+field to its own name (a CLI flag, a ROS parameter) without parsing text.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
+
+from localpbo_core.validation import SettingError, check_float, check_int
+
+__all__ = [
+    "BUDGET_PER_DIMENSION",
+    "DEFAULT_ALGORITHM",
+    "DEFAULT_INITIAL_DESIGN",
+    "DEFAULT_NOISE_FRACTION",
+    "DEFAULT_PROBLEM",
+    "RunSettings",
+    "SettingError",
+    "default_budget",
+]
 
 DEFAULT_INITIAL_DESIGN = 2
 """Shared random initial points of a run (paper App. D.1)."""
@@ -41,42 +53,9 @@ BUDGET_PER_DIMENSION = 10
 """The default budget adds this many evaluations per dimension to the initial design."""
 
 
-class SettingError(ValueError):
-    """A refused setting: ``field`` names it, ``reason`` says why (``str()`` joins both).
-
-    ``field`` is a dotted path for nested settings, e.g. ``optimizer_options.batch_size``
-    or ``problem_options.episode_steps``.
-    """
-
-    def __init__(self, field: str, reason: str) -> None:
-        super().__init__(f"{field}: {reason}")
-        self.field = field
-        self.reason = reason
-
-    def within(self, prefix: str) -> SettingError:
-        """The same error with ``prefix.`` in front of its field."""
-        return SettingError(f"{prefix}.{self.field}", self.reason)
-
-
 def default_budget(dim: int, initial_design: int = DEFAULT_INITIAL_DESIGN) -> int:
     """``initial_design + 10 d`` evaluations (paper App. D.1)."""
     return int(initial_design) + BUDGET_PER_DIMENSION * int(dim)
-
-
-def check_int(field: str, value: object, minimum: int = 0) -> int:
-    """``value`` as an int if it is an integer (not a bool) >= ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise SettingError(field, f"must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def check_fraction(field: str, value: object) -> float:
-    """``value`` as a float if it is a finite number >= 0 (not a bool)."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise SettingError(field, f"must be a finite number, got {value!r}")
-    if value < 0:
-        raise SettingError(field, f"must be >= 0, got {value!r}")
-    return float(value)
 
 
 def _check_options(field: str, value: object) -> dict[str, Any]:
@@ -126,7 +105,7 @@ class RunSettings:
                 raise SettingError(name, f"must be a non-empty name, got {value!r}")
         object.__setattr__(self, "algorithm", self.algorithm.strip().lower())
         object.__setattr__(self, "problem", self.problem.strip())
-        check_int("seed", self.seed)
+        check_int("seed", self.seed, minimum=0)
         if self.budget is not None:
             check_int("budget", self.budget, minimum=1)
         check_int("initial_design", self.initial_design, minimum=2)
@@ -136,7 +115,7 @@ class RunSettings:
                 f"{self.budget} is smaller than the initial design ({self.initial_design})",
             )
         object.__setattr__(
-            self, "noise_fraction", check_fraction("noise_fraction", self.noise_fraction)
+            self, "noise_fraction", check_float("noise_fraction", self.noise_fraction, minimum=0.0)
         )
         options = _check_options("optimizer_options", self.optimizer_options)
         for reserved in ("dim", "seed", "budget", "initial_design"):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -22,7 +23,7 @@ from .tasks import LinearPolicyTask, make_task
 
 
 def _gym_steps_per_second(task: LinearPolicyTask, weights: np.ndarray, seed: int) -> float:
-    kwargs = {} if task.spec.kind != "planar_walker" else {"healthy_reward": 0.0}
+    kwargs: dict[str, Any] = {} if task.spec.kind != "planar_walker" else {"healthy_reward": 0.0}
     env = gym.make(task.spec.env_id, **kwargs)
     obs, _ = env.reset(seed=seed)
     steps = 0

@@ -28,14 +28,15 @@ A task is a maximisation problem on theta in [0,1]^d that satisfies ``localpbo_c
 * ``value_range``: max − min of ``true_value`` over the first 256 points of a scrambled Sobol
   sequence (scipy ``qmc.Sobol(d, scramble=True, seed=0)``), computed offline by
   ``python -m localpbo_core.problems.calibrate --problem NAME --points 256`` and stored in
-  ``VALUE_RANGES``; the oracle's noise std is a fraction of it (paper Sec. 6, eq. noise).
+  ``VALUE_RANGES``; the oracle's noise std is a fraction of it (paper Sec. 6 and eq. (2)
+  "observation noise").
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict, Unpack
 
 import numpy as np
 
@@ -91,8 +92,10 @@ def available_tasks() -> list[str]:
 
 
 def _check_seed(seed: int) -> int:
+    """The seed as a Python int >= 0 (the wording of ``localpbo_core.validation.check_int``;
+    this package does not import ``localpbo_core``)."""
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"seed: expected a non-negative integer, got {seed!r}")
+        raise ValueError(f"seed: must be an integer >= 0, got {seed!r}")
     return int(seed)
 
 
@@ -181,15 +184,15 @@ class LinearPolicyTask:
 
     # -- theta <-> weights -------------------------------------------------------------
     def _check_theta(self, theta: np.ndarray) -> np.ndarray:
+        """Theta as float64 ``(d,)`` in [0,1]^d (the wording of
+        ``localpbo_core.validation.check_theta``)."""
         arr = np.asarray(theta, dtype=np.float64)
         if arr.shape != (self.dim,):
-            raise ValueError(
-                f"theta: expected shape ({self.dim},) for {self.name}, got {arr.shape}"
-            )
+            raise ValueError(f"theta: expected shape ({self.dim},), got {arr.shape}")
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f"theta: contains NaN or inf for {self.name}")
+            raise ValueError("theta: contains NaN or inf")
         if np.any(arr < 0.0) or np.any(arr > 1.0):
-            raise ValueError(f"theta: entries must lie in [0, 1] for {self.name}")
+            raise ValueError(f"theta: must lie in [0, 1]^{self.dim}")
         return arr
 
     def to_native(self, theta: np.ndarray) -> np.ndarray:
@@ -276,6 +279,17 @@ class LinearPolicyTask:
         return value
 
 
-def make_task(name: str, **options: object) -> LinearPolicyTask:
+class TaskOptions(TypedDict, total=False):
+    """The keyword options of :class:`LinearPolicyTask` (all optional)."""
+
+    alive_bonus: bool
+    weight_low: float
+    weight_high: float
+    episode_steps: int
+    cache_size: int
+    value_range: float | None
+
+
+def make_task(name: str, **options: Unpack[TaskOptions]) -> LinearPolicyTask:
     """Create the linear-policy task ``name`` (options as ``LinearPolicyTask``)."""
-    return LinearPolicyTask(name, **options)  # type: ignore[arg-type]
+    return LinearPolicyTask(name, **options)

@@ -19,6 +19,8 @@ import torch
 from scipy.optimize import Bounds, minimize
 from torch import Tensor
 
+from localpbo_core.surrogate.sampling import SamplePaths
+
 _SQRT2 = 2.0**0.5
 _INV_SQRT_2PI = (2.0 * torch.pi) ** -0.5
 
@@ -142,10 +144,10 @@ def thompson_batch(
     """One maximiser per sample path: raw candidates -> best ``num_restarts`` per path ->
     L-BFGS-B inside the box on that path (TuRPBO table: 1024 raw, 5 restarts).
 
-    If ``path`` offers ``value_and_grad(x, index)`` and ``values(x)`` on float64 numpy
-    arrays (:class:`~localpbo_core.surrogate.sampling.SamplePaths`: closed-form gradient,
-    paper Sec. 4 pathwise sampling), those are used; otherwise the values come from
-    ``path`` and the gradients from torch autograd.
+    If ``path`` is a :class:`~localpbo_core.surrogate.sampling.SamplePaths` (pathwise
+    sampling of the paper Sec. 4 posterior), its float64 numpy ``values`` and closed-form
+    ``value_and_grad`` are used; for any other callable the values come from ``path`` and
+    the gradients from torch autograd.
 
     Args:
         path: maps ``(N, d)`` to ``(N, P)``: P pathwise Thompson samples.
@@ -154,35 +156,44 @@ def thompson_batch(
     Returns:
         ``(P, d)``: the maximiser of each path.
     """
-    analytic = callable(getattr(path, "value_and_grad", None)) and callable(
-        getattr(path, "values", None)
-    )
     raw = np.asarray(raw, dtype=np.float64)
-    if analytic:
-        vals = path.values(raw)  # type: ignore[attr-defined]
-    else:
-        with torch.no_grad():
-            vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
-    num_paths = vals.shape[1]
+    if isinstance(path, SamplePaths):
+        return _thompson_analytic(path, raw, lb, ub, num_restarts, maxiter)
+    with torch.no_grad():
+        vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
     out = []
-    for j in range(num_paths):
-        top = np.argsort(-vals[:, j], kind="stable")[:num_restarts]
-        starts = raw[top]
-        if analytic:
+    for j in range(vals.shape[1]):
+        starts = raw[np.argsort(-vals[:, j], kind="stable")[:num_restarts]]
 
-            def vg(x: np.ndarray, j: int = j) -> tuple[np.ndarray, np.ndarray]:
-                return path.value_and_grad(x, j)  # type: ignore[attr-defined]
+        def obj(x: Tensor, j: int = j) -> Tensor:
+            return path(x)[:, j]
 
-            def v(x: np.ndarray, j: int = j) -> np.ndarray:
-                return path.values(x, j)  # type: ignore[attr-defined]
+        xs, fs = maximize_in_box(obj, starts, lb, ub, maxiter)
+        out.append(xs[int(np.argmax(fs))])
+    return np.stack(out)
 
-            xs, fs = _lbfgsb_multistart(vg, v, starts, lb, ub, maxiter)
-        else:
 
-            def obj(x: Tensor, j: int = j) -> Tensor:
-                return path(x)[:, j]
+def _thompson_analytic(
+    paths: SamplePaths,
+    raw: np.ndarray,
+    lb: np.ndarray,
+    ub: np.ndarray,
+    num_restarts: int,
+    maxiter: int,
+) -> np.ndarray:
+    """:func:`thompson_batch` on the closed-form values and gradients of ``paths``."""
+    vals = paths.values(raw)
+    out = []
+    for j in range(vals.shape[1]):
+        starts = raw[np.argsort(-vals[:, j], kind="stable")[:num_restarts]]
 
-            xs, fs = maximize_in_box(obj, starts, lb, ub, maxiter)
+        def vg(x: np.ndarray, j: int = j) -> tuple[np.ndarray, np.ndarray]:
+            return paths.value_and_grad(x, j)
+
+        def v(x: np.ndarray, j: int = j) -> np.ndarray:
+            return paths.values(x, j)
+
+        xs, fs = _lbfgsb_multistart(vg, v, starts, lb, ub, maxiter)
         out.append(xs[int(np.argmax(fs))])
     return np.stack(out)
 

@@ -1,6 +1,7 @@
-"""The ask/tell contract (DESIGN.md §3).
+"""The ask/tell contract: the values exchanged between an optimizer and its caller.
 
-An optimizer is a deterministic state machine over (config, seed, outcomes so far):
+An optimizer is a deterministic state machine over (config, seed, outcomes so far), so the
+same configuration and the same outcomes in the same order reproduce the same state:
 ``ask()`` returns new candidates to evaluate and the duels wanted between candidate ids;
 ``tell()`` takes duel outcomes. Budget is counted in evaluations (paper App. D.1).
 """

@@ -3,7 +3,7 @@
 BoTorch's preference acquisitions (EUBO, Lin et al. 2022; qEUBO, Astudillo et al. 2023; the
 qEUBO baseline of paper Sec. 6 / App. D.1) only need ``model.posterior(X)`` — the joint
 Laplace posterior of the latent utility at the ``q`` points of each t-batch (paper Sec. 4,
-eq. general_covariance_block with a = b = 0):
+eq. (11) "general covariance block" with a = b = 0):
 
 ``mean = K(Xq, X) K^{-1} f_hat``,
 ``cov = K(Xq, Xq) - K(Xq, X) (K + C_hat^{-1})^{-1} K(X, Xq)``.
@@ -29,7 +29,7 @@ from gpytorch.distributions import MultivariateNormal
 from linear_operator import to_linear_operator
 from torch import Tensor
 
-from localpbo_core.surrogate import PairwiseGPSurrogate
+from localpbo_core.surrogate import Surrogate
 from localpbo_core.surrogate.kernel import se_kernel, se_kernel_exact
 
 
@@ -45,7 +45,7 @@ class PosteriorCache:
     A: Tensor
 
     @classmethod
-    def from_surrogate(cls, surrogate: PairwiseGPSurrogate) -> PosteriorCache:
+    def from_surrogate(cls, surrogate: Surrogate) -> PosteriorCache:
         """Form ``alpha`` and ``A`` (Woodbury, see the module docstring)."""
         L, LB = surrogate.chol_K, surrogate.chol_B
         p = L.shape[0]
@@ -60,10 +60,8 @@ class PosteriorCache:
         return cls(surrogate.train_inputs, ls, float(surrogate.outputscale), alpha, A)
 
 
-def batched_mean_cov(
-    surrogate: PairwiseGPSurrogate | PosteriorCache, X: Tensor
-) -> tuple[Tensor, Tensor]:
-    """Joint posterior of ``f`` per t-batch (paper Sec. 4, eq. general_covariance_block).
+def batched_mean_cov(surrogate: Surrogate | PosteriorCache, X: Tensor) -> tuple[Tensor, Tensor]:
+    """Joint posterior of ``f`` per t-batch (paper Sec. 4, eq. (11) "general covariance block").
 
     Args:
         surrogate: a fitted surrogate or its :class:`PosteriorCache`.
@@ -97,7 +95,7 @@ class SurrogateModel(Model):
     reads its dtype and device from ``pref_model.datapoints``.
     """
 
-    def __init__(self, surrogate: PairwiseGPSurrogate) -> None:
+    def __init__(self, surrogate: Surrogate) -> None:
         super().__init__()
         self.surrogate = surrogate
         self.cache = PosteriorCache.from_surrogate(surrogate)
@@ -140,5 +138,5 @@ class SurrogateModel(Model):
         )
         post = GPyTorchPosterior(mvn)
         if posterior_transform is not None:
-            return posterior_transform(post)  # type: ignore[return-value]
+            return posterior_transform(post)
         return post

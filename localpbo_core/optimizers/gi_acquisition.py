@@ -3,7 +3,7 @@ GI_PBO_acf_detailed) and its candidate sets (App. C.2, "Candidate-set constructi
 
 ``alpha(x | x_t, D) = tr Sigma_11(x_t | D) - sum_o P(o) tr Sigma_11(x_t | D + o)`` where ``o``
 ranges over the two outcomes of the virtual duel between ``x`` and its opponent (``x > opp``
-and ``opp > x``), ``P(o)`` is the Laplace predictive preference probability (eq. likelihood
+and ``opp > x``), ``P(o)`` is the Laplace predictive preference probability (eq. (5) "likelihood"
 marginalised over the posterior) and ``D + o`` is refitted (Laplace MAP) at FIXED
 hyperparameters. All refits of a candidate set are done in batch by
 :func:`localpbo_core.surrogate.virtual_refit.virtual_refit`.
@@ -25,8 +25,9 @@ import torch
 from torch import Tensor
 
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
-from localpbo_core.surrogate.pairwise_gp import PairwiseGPSurrogate
+from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.surrogate.virtual_refit import gradient_covariance_trace, virtual_refit
+from localpbo_core.validation import check_float
 
 #: Paper App. C.2: radii of the hyperspheres for d > 2 and the search bounds.
 DEFAULT_RADII = (0.05, 0.1, 0.15, 0.2)
@@ -45,7 +46,7 @@ def sphere_directions(n: int, dim: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def hypersphere_candidates(
-    centre: np.ndarray,
+    center: np.ndarray,
     rng: np.random.Generator,
     radii: Sequence[float] = DEFAULT_RADII,
     resolution: int = 50,
@@ -58,7 +59,7 @@ def hypersphere_candidates(
     ``d > 2``: ``min(d * resolution, max_candidates)`` points split evenly over the spheres of
     ``radii`` (paper: 0.05, 0.1, 0.15, 0.2; resolution 50; cap 512).
     """
-    d = int(centre.shape[0])
+    d = int(center.shape[0])
     if d <= 2:
         rads = np.linspace(search_bounds[0], search_bounds[1], 10)
         per = [250] * 10
@@ -67,20 +68,20 @@ def hypersphere_candidates(
         total = min(d * resolution, max_candidates)
         base, extra = divmod(total, len(rads))
         per = [base + (1 if i < extra else 0) for i in range(len(rads))]
-    pts = [centre + r * sphere_directions(n, d, rng) for r, n in zip(rads, per, strict=True)]
+    pts = [center + r * sphere_directions(n, d, rng) for r, n in zip(rads, per, strict=True)]
     return np.clip(np.concatenate(pts, axis=0), 0.0, 1.0)
 
 
 def random_local_query(
-    centre: np.ndarray,
+    center: np.ndarray,
     rng: np.random.Generator,
     search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
 ) -> np.ndarray:
     """GIPBOr's query (App. C.3): uniform direction, radius uniform in ``search_bounds``,
     projected onto ``[0, 1]^d``."""
-    u = sphere_directions(1, centre.shape[0], rng)[0]
+    u = sphere_directions(1, center.shape[0], rng)[0]
     r = rng.uniform(search_bounds[0], search_bounds[1])
-    return np.clip(centre + r * u, 0.0, 1.0)
+    return np.clip(center + r * u, 0.0, 1.0)
 
 
 def _match_index(points: Tensor, x: Tensor) -> int | None:
@@ -92,28 +93,29 @@ def _match_index(points: Tensor, x: Tensor) -> int | None:
 
 @torch.no_grad()
 def gi_pbo_acquisition(
-    surrogate: PairwiseGPSurrogate,
-    centre: Tensor,
+    surrogate: Surrogate,
+    center: Tensor,
     candidates: Tensor,
     opponent: Tensor,
     likelihood_threshold: float = 0.0,
 ) -> Tensor:
-    """Eq. GI_PBO_acf_detailed for every candidate (``(N,)``; larger is better).
+    """Eq. (16) "GIPBO acquisition" for every candidate (``(N,)``; larger is better).
 
     Args:
         surrogate: the current fit (its hyperparameters stay fixed in the virtual refits).
-        centre: ``(d,)`` the point ``x_t`` whose gradient covariance is reduced.
+        center: ``(d,)`` the point ``x_t`` whose gradient covariance is reduced.
         candidates: ``(N, d)`` points ``x``.
         opponent: ``(d,)`` the point each candidate is virtually dueled against (GIPBO passes
             the local incumbent, which is ``x_t`` for the first query of a phase). It may be
-            a new point (not in the data), e.g. a centre not evaluated yet.
+            a new point (not in the data), e.g. a center not evaluated yet.
         likelihood_threshold: in ``[0, 0.5)``; see the module docstring.
 
     Candidates that coincide (within ``DUPLICATE_ATOL``) with a training point or with the
     opponent get ``-inf``.
     """
-    if not 0.0 <= likelihood_threshold < 0.5:
-        raise ValueError(f"likelihood_threshold: must be in [0, 0.5), got {likelihood_threshold}")
+    check_float(
+        "likelihood_threshold", likelihood_threshold, minimum=0.0, maximum=0.5, maximum_open=True
+    )
     X = surrogate.train_inputs
     p, d = X.shape
     if candidates.ndim != 2 or candidates.shape[1] != d:
@@ -148,9 +150,9 @@ def gi_pbo_acquisition(
     for s in range(0, rows.shape[0], chunk):
         sl = slice(s, s + chunk)
         fit = virtual_refit(surrogate, new_points[rows[sl]], winners[sl], losers[sl])
-        traces[sl] = gradient_covariance_trace(surrogate, fit, centre)
+        traces[sl] = gradient_covariance_trace(surrogate, fit, center)
     expected = torch.zeros(n, dtype=torch.float64)
     expected.index_add_(0, rows, weights[rows, outcome] * traces)
-    current = torch.diagonal(surrogate.gradient_covariance(centre)).sum()
+    current = torch.diagonal(surrogate.gradient_covariance(center)).sum()
     out[valid] = current - expected
     return out

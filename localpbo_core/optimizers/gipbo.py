@@ -1,8 +1,8 @@
 """GIPBO and GIPBOr: gradient-informed local preferential BO (paper Sec. 5.1, App. C.2-C.3,
-Alg. GIPBO, table ``tab:gipbo_hyperparameters``).
+Alg. GIPBO and its hyperparameter table).
 
-Phase ``t`` at centre ``x_t``: ``M = d`` local queries, each chosen by the preferential GI
-acquisition (eq. GI_PBO_acf_detailed, GIPBO) or at random in the same search region
+Phase ``t`` at center ``x_t``: ``M = d`` local queries, each chosen by the preferential GI
+acquisition (paper eq. (16) "GIPBO acquisition") or at random in the same search region
 (GIPBOr), and dueled against the local incumbent ``x*_{t,i-1}`` (which starts at ``x_t`` and
 is replaced by a query that wins). GIPBO refits the pairwise GP (hyperparameters learned,
 warm-started) before every query; both refit after the ``M`` duels and step
@@ -10,7 +10,7 @@ warm-started) before every query; both refit after the ``M`` duels and step
     ``g = mu_grad(x_t)``, ``p = g / sqrt(g^T Lambda g)``, ``x_{t+1} = Pi(x_t + eta p)``
 
 (App. C.2, "Gradient-step normalization"), with the step rescaled to length ``min_step`` if
-shorter. Budget accounting and the centre's evaluation: :mod:`.local_phase`.
+shorter. Budget accounting and the center's evaluation: :mod:`.local_phase`.
 
 Decisions not fixed by the paper:
 
@@ -21,7 +21,7 @@ Decisions not fixed by the paper:
   ``diag(l^2)`` the step would be at least ``eta / 0.5 = 1`` for every lengthscale in
   ``[0.05, 0.5]``, leaving the local region at every step.
 * The virtual duel of the acquisition is against the local incumbent (the duel that will
-  actually be run); ``virtual_opponent="centre"`` uses ``x_t`` as written in eq.
+  actually be run); ``virtual_opponent="center"`` uses ``x_t`` as written in eq.
   GI_PBO_acf_detailed. Both coincide for the first query of a phase.
 * Virtual preference likelihood threshold 0.1: see :mod:`.gi_acquisition`.
 * A zero (or non-finite) posterior mean gradient gives no step (the phase repeats at x_t).
@@ -44,13 +44,13 @@ from localpbo_core.optimizers.gi_acquisition import (
     hypersphere_candidates,
     random_local_query,
 )
-from localpbo_core.optimizers.local_phase import (
-    LocalPhaseOptimizer,
-    check_float,
-)
-from localpbo_core.optimizers.preference_optimizer import check_int, step_generator
+from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
+from localpbo_core.optimizers.preference_optimizer import step_generator
+from localpbo_core.validation import SettingError, check_choice, check_float, check_int
 
-VIRTUAL_OPPONENTS = ("incumbent", "centre")
+VIRTUAL_OPPONENTS = ("incumbent", "center")
+#: Accepted spellings of ``virtual_opponent`` values (a user-facing option) -> the canonical one.
+_VIRTUAL_OPPONENT_ALIASES = {"centre": "center"}
 
 
 def normalized_gradient_step(
@@ -83,7 +83,8 @@ class GIPBO(LocalPhaseOptimizer):
         resolution: candidates per dimension for d > 2 (table: 50).
         max_candidates: cap on the candidate set for d > 2 (App. C.2: 512).
         likelihood_threshold: virtual preference likelihood threshold (table: 0.1).
-        virtual_opponent: ``"incumbent"`` (default) or ``"centre"`` (see the module docstring).
+        virtual_opponent: ``"incumbent"`` (default) or ``"center"`` (see the module docstring;
+            the spelling ``"centre"`` is accepted too).
     """
 
     name = "gipbo"
@@ -107,8 +108,8 @@ class GIPBO(LocalPhaseOptimizer):
         virtual_opponent: str = "incumbent",
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        self.step_size = check_float(step_size, "step_size", 0.0, 1e6, low_open=True)
-        self.min_step = check_float(min_step, "min_step", 0.0, 1e6, low_open=False)
+        self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
+        self.min_step = check_float("min_step", min_step, minimum=0.0)
         self.num_local_queries = (
             self.dim
             if num_local_queries is None
@@ -117,26 +118,36 @@ class GIPBO(LocalPhaseOptimizer):
         try:
             lo, hi = (float(b) for b in search_bounds)
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"search_bounds: expected two numbers, got {search_bounds!r}") from exc
+            raise SettingError(
+                "search_bounds", f"expected two numbers, got {search_bounds!r}"
+            ) from exc
         if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
-            raise ValueError(f"search_bounds: need 0 < delta_min <= delta_max, got {search_bounds}")
+            raise SettingError(
+                "search_bounds", f"need 0 < delta_min <= delta_max, got {search_bounds}"
+            )
         self.search_bounds = (lo, hi)
         try:
             self.radii = tuple(float(r) for r in radii)
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"radii: expected a sequence of numbers, got {radii!r}") from exc
+            raise SettingError("radii", f"expected a sequence of numbers, got {radii!r}") from exc
         if not self.radii or any(not np.isfinite(r) or r <= 0 for r in self.radii):
-            raise ValueError(f"radii: need a non-empty sequence of positive numbers, got {radii}")
+            raise SettingError(
+                "radii", f"need a non-empty sequence of positive numbers, got {radii}"
+            )
         self.resolution = check_int("resolution", resolution)
         self.max_candidates = check_int("max_candidates", max_candidates)
         self.likelihood_threshold = check_float(
-            likelihood_threshold, "likelihood_threshold", 0.0, 0.4999999, low_open=False
+            "likelihood_threshold",
+            likelihood_threshold,
+            minimum=0.0,
+            maximum=0.5,
+            maximum_open=True,
         )
-        if virtual_opponent not in VIRTUAL_OPPONENTS:
-            raise ValueError(
-                f"virtual_opponent: must be one of {VIRTUAL_OPPONENTS}, got {virtual_opponent!r}"
-            )
-        self.virtual_opponent = virtual_opponent
+        self.virtual_opponent = check_choice(
+            "virtual_opponent",
+            _VIRTUAL_OPPONENT_ALIASES.get(virtual_opponent, virtual_opponent),
+            VIRTUAL_OPPONENTS,
+        )
         self._queries_done = 0
         #: GI-PBO values of the last candidate set (for inspection and tests).
         self.last_acquisition: torch.Tensor | None = None
@@ -146,13 +157,13 @@ class GIPBO(LocalPhaseOptimizer):
 
     # ------------------------------------------------------------------ queries
     def _local_thetas(self, remaining: int) -> list[np.ndarray]:
-        assert self._centre_theta is not None
+        assert self._center_theta is not None
         rng = step_generator(self.seed, self._step)
         if self._random_queries:
-            return [random_local_query(self._centre_theta, rng, self.search_bounds)]
+            return [random_local_query(self._center_theta, rng, self.search_bounds)]
         surrogate = self._fit()
         cands = hypersphere_candidates(
-            self._centre_theta,
+            self._center_theta,
             rng,
             radii=self.radii,
             resolution=self.resolution,
@@ -162,18 +173,18 @@ class GIPBO(LocalPhaseOptimizer):
         opp = (
             self._local_incumbent_theta()
             if self.virtual_opponent == "incumbent"
-            else self._centre_theta
+            else self._center_theta
         )
         acq = gi_pbo_acquisition(
-            surrogate,  # type: ignore[arg-type]
-            torch.tensor(self._centre_theta, dtype=torch.float64),
+            surrogate,
+            torch.tensor(self._center_theta, dtype=torch.float64),
             torch.tensor(cands, dtype=torch.float64),
             torch.tensor(opp, dtype=torch.float64),
             likelihood_threshold=self.likelihood_threshold,
         )
         self.last_acquisition = acq
         if not torch.isfinite(acq).any():
-            return [random_local_query(self._centre_theta, rng, self.search_bounds)]
+            return [random_local_query(self._center_theta, rng, self.search_bounds)]
         return [cands[int(torch.argmax(acq))]]
 
     def _local_opponent(self) -> int:
@@ -187,17 +198,18 @@ class GIPBO(LocalPhaseOptimizer):
         query = candidates[-1].id
         if any(o.winner == query for o in outcomes):
             self._local_inc_id = query
-        self._incumbent_id = self._local_inc_id
+        assert self._local_inc_id is not None  # the center was registered with this ask
+        self._set_incumbent(self._local_inc_id)
         self._queries_done += 1
         if self._queries_done < self.num_local_queries:
             return
         surrogate = self._fit()
-        assert self._centre_theta is not None
-        x = torch.tensor(self._centre_theta, dtype=torch.float64)
-        g = surrogate.mean_gradient(x).detach().numpy()  # type: ignore[attr-defined]
-        ls = surrogate.lengthscale.detach().numpy()  # type: ignore[attr-defined]
+        assert self._center_theta is not None
+        x = torch.tensor(self._center_theta, dtype=torch.float64)
+        g = surrogate.mean_gradient(x).detach().numpy()
+        ls = surrogate.lengthscale.detach().numpy()
         step = normalized_gradient_step(g, ls, self.step_size, self.min_step)
-        self._move_centre(self._centre_theta + step)
+        self._move_center(self._center_theta + step)
 
 
 class GIPBOr(GIPBO):

@@ -39,23 +39,26 @@ import importlib
 import inspect
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from types import ModuleType
-from typing import Any
+from typing import Any, Protocol, cast
 
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    check_int,
-    step_generator,
-)
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
+from localpbo_core.validation import SettingError, check_float, check_int
 
 #: Tag mixed into the seed of GLISp's extra random initial points.
 GLISP_INIT_TAG = 0x611F
 
 
-def _glis_solvers() -> ModuleType:
+class _GlisSolvers(Protocol):
+    """What this wrapper uses of the untyped module ``glis.solvers``."""
+
+    GLISp: Callable[..., Any]
+    pso: Callable[..., Any]
+
+
+def _glis_solvers() -> _GlisSolvers:
     """Import ``glis.solvers``. glis 2.0.2 does ``from pyDOE import lhs``, but pydoe >= 1.6
     renamed its module to ``pydoe``; if only the new name exists it is aliased (glis's ``lhs``
     is never called here: the initial points are supplied by this wrapper)."""
@@ -63,7 +66,7 @@ def _glis_solvers() -> ModuleType:
         importlib.import_module("pyDOE")
     except ModuleNotFoundError:
         sys.modules["pyDOE"] = importlib.import_module("pydoe")
-    return importlib.import_module("glis.solvers")
+    return cast(_GlisSolvers, importlib.import_module("glis.solvers"))
 
 
 def _pso_with_seed(pso: Callable[..., Any], seed: int) -> Callable[..., tuple[Any, Any]]:
@@ -135,23 +138,14 @@ class GLISpOptimizer(PreferenceOptimizer):
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
         if isinstance(batch_size, bool) or batch_size != 1:
-            raise ValueError(f"batch_size: GLISp queries one point at a time, got {batch_size!r}")
-        for key, val in (
-            ("n_initial_random", n_initial_random),
-            ("pso_iters", pso_iters),
-            ("pso_swarm_size", pso_swarm_size),
-        ):
-            check_int(key, val)
-        if n_initial_random < 2:
-            raise ValueError(f"n_initial_random: must be >= 2, got {n_initial_random}")
-        if (
-            isinstance(delta, bool)
-            or not isinstance(delta, int | float)
-            or not np.isfinite(delta)
-            or delta < 0
-        ):
-            raise ValueError(f"delta: must be a finite number >= 0, got {delta!r}")
-        self.n_initial_random = max(int(n_initial_random), self.initial_design)
+            raise SettingError(
+                "batch_size", f"GLISp queries one point at a time, got {batch_size!r}"
+            )
+        n_initial_random = check_int("n_initial_random", n_initial_random, minimum=2)
+        pso_iters = check_int("pso_iters", pso_iters)
+        pso_swarm_size = check_int("pso_swarm_size", pso_swarm_size)
+        delta = check_float("delta", delta, minimum=0.0)
+        self.n_initial_random = max(n_initial_random, self.initial_design)
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, GLISP_INIT_TAG]))
         extra = rng.random((self.n_initial_random - self.initial_design, self.dim))
         self._glis_initial = np.vstack([self._design, extra])
@@ -174,7 +168,7 @@ class GLISpOptimizer(PreferenceOptimizer):
             glis.X = [row.copy() for row in initial]
             return (initial - glis.d0) / glis.dd  # glis works in [-1, 1]^d
 
-        self._glis.initialize_ = _initial_samples  # type: ignore[method-assign]
+        self._glis.initialize_ = _initial_samples
         self._glis.initialize()
         self._fed = 0  # outcomes passed to glis so far
 

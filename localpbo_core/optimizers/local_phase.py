@@ -1,18 +1,18 @@
 """Shared bookkeeping of the derivative-informed local methods GIPBO, GIPBOr and PrefSQP
 (paper Sec. 5.1-5.2, App. C.2-C.4) and their budget accounting (App. D.1).
 
-An iteration ("phase") has a centre ``x_t``. The first centre is the winner of the initial
-design. After a step to ``x_{t+1}`` the new centre is evaluated but NOT dueled at that moment:
+An iteration ("phase") has a center ``x_t``. The first center is the winner of the initial
+design. After a step to ``x_{t+1}`` the new center is evaluated but NOT dueled at that moment:
 it is registered together with the first local query(ies) of the next phase, which are
 dueled against it (App. D.1: "the subsequent center updates are not immediately evaluated",
-i.e. not immediately compared). So with ``G`` evaluated step centres, ``N`` evaluations give
+i.e. not immediately compared). So with ``G`` evaluated step centers, ``N`` evaluations give
 ``N - 1 - G`` comparisons (the initial pair gives one comparison for two evaluations; the
 paper's ``N - G`` counts the same way as its ``N - 1`` for king-of-the-hill methods, off by
-the initial pair). Exception: if a step centre would be the very last evaluation of the
+the initial pair). Exception: if a step center would be the very last evaluation of the
 budget, it is dueled against the current incumbent (an ask needs a duel), one extra
 comparison.
 
-A step that lands (within ``DUPLICATE_ATOL``) on the old centre reuses it (no evaluation).
+A step that lands (within ``DUPLICATE_ATOL``) on the old center reuses it (no evaluation).
 
 The reported incumbent (``PreferenceOptimizer.incumbent``) is the current local incumbent:
 the latest winner of the phase's duel chain.
@@ -28,26 +28,15 @@ import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
+from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
 
 
-def check_float(value: object, field: str, low: float, high: float, low_open: bool) -> float:
-    """Return ``value`` as float in ``(low, high]`` / ``[low, high]`` or raise ValueError."""
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
-        raise ValueError(f"{field}: must be a number, got {value!r}")
-    v = float(value)
-    ok = np.isfinite(v) and (v > low if low_open else v >= low) and v <= high
-    if not ok:
-        br = "(" if low_open else "["
-        raise ValueError(f"{field}: must lie in {br}{low}, {high}], got {value!r}")
-    return v
-
-
 class LocalPhaseOptimizer(PreferenceOptimizer):
-    """Base of the centre-based local methods (see the module docstring).
+    """Base of the center-based local methods (see the module docstring).
 
     Subclasses implement :meth:`_local_thetas` (the queries of the current ask),
-    :meth:`_local_opponent` and :meth:`_after_duels`; they call :meth:`_move_centre` to end a
+    :meth:`_local_opponent` and :meth:`_after_duels`; they call :meth:`_move_center` to end a
     phase.
     """
 
@@ -60,41 +49,39 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         warm_start: Sequence[float] | np.ndarray | None = None,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        self._centre_id: int | None = None
-        self._centre_theta: np.ndarray | None = None
-        self._centre_pending = False  # a step centre not evaluated yet
-        self._local_inc_id: int | None = None  # None while the centre is pending
-        self._final_centre_duel = False
-        self._surrogate: object | None = None
+        self._center_id: int | None = None
+        self._center_theta: np.ndarray | None = None
+        self._center_pending = False  # a step center not evaluated yet
+        self._local_inc_id: int | None = None  # None while the center is pending
+        self._final_center_duel = False
+        self._surrogate: Surrogate | None = None
         self._fit_key: tuple[int, int] | None = None
-        #: Number of steps whose new centre was evaluated (``G`` of App. D.1).
+        #: Number of steps whose new center was evaluated (``G`` of App. D.1).
         self.gradient_steps = 0
-        #: Centres of every phase, in order (thetas).
-        self.centres: list[np.ndarray] = []
+        #: Centers of every phase, in order (thetas).
+        self.centers: list[np.ndarray] = []
 
     # ------------------------------------------------------------------ state
     @property
-    def centre(self) -> np.ndarray | None:
-        """The current centre ``x_t`` (possibly not evaluated yet)."""
-        return self._centre_theta
+    def center(self) -> np.ndarray | None:
+        """The current center ``x_t`` (possibly not evaluated yet)."""
+        return self._center_theta
 
     @property
-    def surrogate(self) -> object | None:
+    def surrogate(self) -> Surrogate | None:
         """The last fitted surrogate."""
         return self._surrogate
 
     def _local_incumbent_theta(self) -> np.ndarray:
-        """Theta of the local incumbent (the pending centre before it is evaluated)."""
+        """Theta of the local incumbent (the pending center before it is evaluated)."""
         if self._local_inc_id is None:
-            assert self._centre_theta is not None
-            return self._centre_theta
+            assert self._center_theta is not None
+            return self._center_theta
         return np.array(self._candidates[self._local_inc_id].theta)
 
-    def _fit(self) -> object:
+    def _fit(self) -> Surrogate:
         """Refit the pairwise GP on all duels, hyperparameters learned (warm-started from the
         previous fit). Reuses the previous fit when no candidate or duel was added."""
-        from localpbo_core.surrogate import PairwiseGPSurrogate
-
         key = (len(self._candidates), len(self._outcomes))
         if self._surrogate is not None and key == self._fit_key:
             return self._surrogate
@@ -102,56 +89,57 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         X = torch.tensor(self.train_inputs(), dtype=torch.float64)
         comps = torch.tensor(self.comparisons(), dtype=torch.long)
         prev = self._surrogate
-        self._surrogate = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)  # type: ignore[arg-type]
-        return self._surrogate
+        fitted = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)
+        self._surrogate = fitted
+        return fitted
 
     # ------------------------------------------------------------------ ask
     def _propose(self, remaining: int) -> Ask:
-        if self._centre_theta is None:  # first phase: the winner of the initial design
-            self._centre_id = self._require_incumbent()
-            self._centre_theta = np.array(self._candidates[self._centre_id].theta)
-            self._local_inc_id = self._centre_id
-            self.centres.append(self._centre_theta.copy())
+        if self._center_theta is None:  # first phase: the winner of the initial design
+            self._center_id = self._require_incumbent()
+            self._center_theta = np.array(self._candidates[self._center_id].theta)
+            self._local_inc_id = self._center_id
+            self.centers.append(self._center_theta.copy())
             self._start_phase()
-        if self._centre_pending and remaining == 1:
-            new = self._register([self._centre_theta])
-            self._centre_id = new[0].id
-            self._centre_pending = False
+        if self._center_pending and remaining == 1:
+            new = self._register([self._center_theta])
+            self._center_id = new[0].id
+            self._center_pending = False
             self.gradient_steps += 1
-            self._final_centre_duel = True
+            self._final_center_duel = True
             return Ask(tuple(new), (Duel(new[0].id, self._require_incumbent()),))
-        budget_for_queries = remaining - (1 if self._centre_pending else 0)
+        budget_for_queries = remaining - (1 if self._center_pending else 0)
         thetas = self._local_thetas(budget_for_queries)
         registered: list[Candidate] = []
-        if self._centre_pending:
-            registered += self._register([self._centre_theta])
-            self._centre_id = registered[0].id
-            self._local_inc_id = self._centre_id
-            self._centre_pending = False
+        if self._center_pending:
+            registered += self._register([self._center_theta])
+            self._center_id = registered[0].id
+            self._local_inc_id = self._center_id
+            self._center_pending = False
             self.gradient_steps += 1
         queries = self._register(thetas)
         registered += queries
         opp = self._local_opponent()
         return Ask(tuple(registered), tuple(Duel(q.id, opp) for q in queries))
 
-    def _move_centre(self, new_theta: np.ndarray) -> None:
+    def _move_center(self, new_theta: np.ndarray) -> None:
         """Start the next phase at ``Pi_Theta(new_theta)`` (evaluated with the next ask)."""
         new_theta = np.clip(np.asarray(new_theta, dtype=np.float64), 0.0, 1.0)
-        assert self._centre_theta is not None
-        if np.max(np.abs(new_theta - self._centre_theta)) > DUPLICATE_ATOL:
-            self._centre_theta = new_theta
-            self._centre_pending = True
+        assert self._center_theta is not None
+        if np.max(np.abs(new_theta - self._center_theta)) > DUPLICATE_ATOL:
+            self._center_theta = new_theta
+            self._center_pending = True
             self._local_inc_id = None
         else:
-            self._local_inc_id = self._centre_id
-        self.centres.append(self._centre_theta.copy())
+            self._local_inc_id = self._center_id
+        self.centers.append(self._center_theta.copy())
         self._start_phase()
 
     def _on_step_complete(
         self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
     ) -> None:
-        if self._final_centre_duel:  # the last evaluation: centre vs the incumbent
-            self._final_centre_duel = False
+        if self._final_center_duel:  # the last evaluation: center vs the incumbent
+            self._final_center_duel = False
             self._update_king(outcomes)
             return
         self._after_duels(candidates, outcomes)
@@ -173,4 +161,4 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
     @abc.abstractmethod
     def _local_opponent(self) -> int:
         """Candidate id the queries of this ask are dueled against (called after the
-        pending centre, if any, has been registered)."""
+        pending center, if any, has been registered)."""

@@ -1,4 +1,4 @@
-"""The ask/tell base class shared by every preference optimizer (DESIGN.md §3).
+"""The ask/tell base class shared by every preference optimizer (contract: :mod:`.base`).
 
 Bookkeeping that every algorithm needs lives here:
 
@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.surrogate.protocol import Surrogate
+from localpbo_core.validation import SettingError, ValidationError, check_int, check_theta
 
 #: Tag mixed into the seed of the shared initial design; independent of the algorithm.
 INITIAL_DESIGN_TAG = 0x1D51
@@ -35,8 +37,10 @@ INITIAL_DESIGN_TAG = 0x1D51
 STEP_TAG = 0x57E9
 
 
-class InvalidOutcome(ValueError):
-    """A ``tell`` was rejected; the optimizer's state is unchanged."""
+class InvalidOutcome(ValidationError):
+    """A ``tell`` was rejected; the optimizer's state is unchanged. ``field`` is
+    ``"outcome"`` (not an outcome, a self-duel, a duel not asked or answered twice),
+    ``"winner"`` or ``"loser"`` (not a known candidate id); ``reason`` says why."""
 
 
 class BudgetExhausted(RuntimeError):
@@ -60,30 +64,6 @@ class History:
     candidates: tuple[Candidate, ...]
     duels: tuple[Duel, ...]
     outcomes: tuple[Outcome, ...]
-
-
-def check_int(field: str, value: object, minimum: int = 1) -> int:
-    """Return ``value`` as an int if it is an integer (not a bool) >= ``minimum``, else raise
-    ValueError naming ``field``."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise ValueError(f"{field}: must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def check_theta(theta: object, dim: int, field: str) -> np.ndarray:
-    """Return ``theta`` as a read-only float64 vector in [0,1]^dim or raise ValueError."""
-    try:
-        arr = np.array(theta, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{field}: not a numeric vector ({exc})") from exc
-    if arr.shape != (dim,):
-        raise ValueError(f"{field}: expected length {dim}, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{field}: contains NaN or inf")
-    if np.any(arr < 0.0) or np.any(arr > 1.0):
-        raise ValueError(f"{field}: must lie in [0,1]^{dim} (normalised parameters)")
-    arr.setflags(write=False)
-    return arr
 
 
 def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
@@ -117,26 +97,17 @@ class PreferenceOptimizer(abc.ABC):
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
     ) -> None:
-        check_int("dim", dim)
-        if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-            raise ValueError(f"seed: must be a non-negative integer, got {seed!r}")
-        if (
-            isinstance(initial_design, bool)
-            or not isinstance(initial_design, int | np.integer)
-            or initial_design < 2
-        ):
-            raise ValueError(f"initial_design: must be an integer >= 2, got {initial_design!r}")
-        if isinstance(budget, bool) or not isinstance(budget, int | np.integer):
-            raise ValueError(f"budget: must be an integer, got {budget!r}")
-        if budget < initial_design:
-            raise ValueError(
-                f"budget: {budget} is smaller than the initial design ({initial_design})"
+        self.dim = check_int("dim", dim)
+        self.seed = check_int("seed", seed, minimum=0)
+        self.initial_design = check_int("initial_design", initial_design, minimum=2)
+        self._budget = check_int("budget", budget, minimum=0)
+        if self._budget < self.initial_design:
+            raise SettingError(
+                "budget", f"{budget} is smaller than the initial design ({initial_design})"
             )
-        self.dim = int(dim)
-        self.seed = int(seed)
-        self._budget = int(budget)
-        self.initial_design = int(initial_design)
-        self.warm_start = None if warm_start is None else check_theta(warm_start, dim, "warm_start")
+        self.warm_start = (
+            None if warm_start is None else check_theta("warm_start", warm_start, self.dim)
+        )
         design_rng = np.random.default_rng(np.random.SeedSequence([self.seed, INITIAL_DESIGN_TAG]))
         design = design_rng.random((self.initial_design, self.dim))
         if self.warm_start is not None:
@@ -184,6 +155,12 @@ class PreferenceOptimizer(abc.ABC):
     def history(self) -> History:
         """Candidates, duels and outcomes so far."""
         return History(tuple(self._candidates), tuple(self._duels), tuple(self._outcomes))
+
+    @property
+    def surrogate(self) -> Surrogate | None:
+        """The optimizer's last fitted preference model; None if it keeps none (Sobol,
+        GLISp) or has not fitted one yet."""
+        return None
 
     @property
     def in_initial_design(self) -> bool:
@@ -237,11 +214,7 @@ class PreferenceOptimizer(abc.ABC):
             except BaseException:
                 del self._candidates[n:]  # a failed ask leaves no trace
                 raise
-        self._pending = list(ask.duels)
-        self._duels.extend(ask.duels)
-        self._step_outcomes = []
-        self._step_candidates = ask.candidates
-        return ask
+        return self._open_step(ask)
 
     def tell(self, outcomes: Iterable[Outcome]) -> None:
         """Record duel outcomes (a subset or all of the pending duels).
@@ -276,29 +249,42 @@ class PreferenceOptimizer(abc.ABC):
             self._step += 1
 
     # ------------------------------------------------------------------ helpers
+    def _open_step(self, ask: Ask) -> Ask:
+        """Make ``ask`` the current step: its duels become pending and are logged, and its
+        candidates are handed to :meth:`_on_step_complete` once every duel is answered.
+
+        :meth:`ask` calls it for every ask it builds; a subclass that asks follow-up duels
+        without new candidates (qEUBO's bracket rounds) calls it with ``Ask((), duels)``.
+        """
+        self._pending = list(ask.duels)
+        self._duels.extend(ask.duels)
+        self._step_outcomes = []
+        self._step_candidates = ask.candidates
+        return ask
+
     def _match(self, out: object, pending: list[Duel]) -> Duel:
         """Find the pending duel answered by ``out`` or raise InvalidOutcome.
 
-        This is the single place where outcome kinds are dispatched: a win/loss
-        ``Outcome`` today; "indifferent" and "failed" outcome kinds will be added here.
+        This is the single place where outcome kinds are dispatched; the only kind is a
+        win/loss :class:`Outcome`.
         """
         if not isinstance(out, Outcome):
-            raise InvalidOutcome(f"not an Outcome: {out!r}")
+            raise InvalidOutcome("outcome", f"not an Outcome: {out!r}")
         n = self.evaluations_used
-        for cid in (out.winner, out.loser):
+        for role, cid in (("winner", out.winner), ("loser", out.loser)):
             if isinstance(cid, bool) or not isinstance(cid, int | np.integer):
-                raise InvalidOutcome(f"candidate id must be an integer, got {cid!r}")
+                raise InvalidOutcome(role, f"candidate id must be an integer, got {cid!r}")
             if not 0 <= cid < n:
-                raise InvalidOutcome(f"unknown candidate id {cid} (ids are 0..{n - 1})")
+                raise InvalidOutcome(role, f"unknown candidate id {cid} (ids are 0..{n - 1})")
         if out.winner == out.loser:
-            raise InvalidOutcome(f"self-duel {out.winner} vs {out.loser}")
+            raise InvalidOutcome("outcome", f"self-duel {out.winner} vs {out.loser}")
         pair = {int(out.winner), int(out.loser)}
         for duel in pending:
             if {duel.first, duel.second} == pair:
                 return duel
         if any({d.first, d.second} == pair for d in self._duels):
-            raise InvalidOutcome(f"repeated outcome for duel {sorted(pair)}")
-        raise InvalidOutcome(f"duel {sorted(pair)} was not asked")
+            raise InvalidOutcome("outcome", f"repeated outcome for duel {sorted(pair)}")
+        raise InvalidOutcome("outcome", f"duel {sorted(pair)} was not asked")
 
     def _register(self, thetas: Sequence[np.ndarray]) -> list[Candidate]:
         """Give fresh ids to ``thetas`` (clipped to [0,1]^d, float64, read-only)."""
@@ -312,6 +298,13 @@ class PreferenceOptimizer(abc.ABC):
             self._candidates.append(cand)
             new.append(cand)
         return new
+
+    def _set_incumbent(self, candidate_id: int) -> None:
+        """Make candidate ``candidate_id`` the incumbent (for rules other than
+        :meth:`_update_king`, e.g. a local method's local incumbent)."""
+        if not 0 <= candidate_id < len(self._candidates):
+            raise RuntimeError(f"{self.name}: incumbent {candidate_id} is not a candidate")
+        self._incumbent_id = int(candidate_id)
 
     def _require_incumbent(self) -> int:
         if self._incumbent_id is None:
@@ -352,8 +345,16 @@ class KingOfTheHillOptimizer(PreferenceOptimizer):
     :meth:`PreferenceOptimizer._update_king`.
     """
 
-    def __init__(self, *args: object, batch_size: int = 1, **kwargs: object) -> None:
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+    def __init__(
+        self,
+        dim: int,
+        seed: int,
+        budget: int,
+        initial_design: int = 2,
+        warm_start: Sequence[float] | np.ndarray | None = None,
+        batch_size: int = 1,
+    ) -> None:
+        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
         self.batch_size = check_int("batch_size", batch_size)
 
     def _propose(self, remaining: int) -> Ask:

@@ -1,10 +1,10 @@
 """PrefSQP: preference-based sequential quadratic programming (paper Sec. 5.2, App. C.4,
-Alg. PrefSQP, table ``tab:prefsqp_hyperparameters``; ablations of App. D.7).
+Alg. PrefSQP and its hyperparameter table; ablations of App. D.7).
 
 Phase ``t`` at the iterate ``x_t``: ``M = d`` points uniform in ``B_eps(x_t) cap [0,1]^d``
 (eps = 0.05), all dueled against ``x_t`` in one ask; refit (hyperparameters learned,
 warm-started); ``g = mu_grad(x_t)``, ``H = mu_hess(x_t)``; eigenvalue modification to a
-negative-definite ``H~``; Newton direction ``p = -H~^{-1} g`` (eq. newton_direction); line
+negative-definite ``H~``; Newton direction ``p = -H~^{-1} g`` (eq. (19) "Newton direction"); line
 search over ``Pi(x_t + eta p)``, ``eta`` on a grid of 100 points in ``[0, 1]``:
 
 * ``"thompson"`` (default): argmax of one posterior sample path on the grid;
@@ -29,11 +29,10 @@ import torch
 
 from localpbo_core.optimizers.acquisition import eubo_from_moments
 from localpbo_core.optimizers.base import Candidate, Outcome
-from localpbo_core.optimizers.local_phase import (
-    LocalPhaseOptimizer,
-    check_float,
-)
-from localpbo_core.optimizers.preference_optimizer import check_int, step_generator
+from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
+from localpbo_core.optimizers.preference_optimizer import step_generator
+from localpbo_core.surrogate import Surrogate
+from localpbo_core.validation import check_choice, check_float, check_int
 
 LINE_SEARCHES = ("thompson", "full", "eubo")
 _MAX_REJECTION_ROUNDS = 1000
@@ -50,7 +49,7 @@ def negative_definite_modification(H: np.ndarray, floor: float = 1e-6) -> np.nda
 
 
 def newton_direction(g: np.ndarray, H: np.ndarray, floor: float = 1e-6) -> np.ndarray:
-    """``p = -H~^{-1} g`` (eq. newton_direction) with ``H~`` from
+    """``p = -H~^{-1} g`` (eq. (19) "Newton direction") with ``H~`` from
     :func:`negative_definite_modification`; ``g^T p > 0`` whenever ``g != 0``."""
     Ht = negative_definite_modification(H, floor)
     return -np.linalg.solve(Ht, np.asarray(g, dtype=np.float64))
@@ -62,18 +61,18 @@ def line_search_points(x: np.ndarray, p: np.ndarray, resolution: int = 100) -> n
     return np.clip(x[None, :] + eta[:, None] * p[None, :], 0.0, 1.0)
 
 
-def ball_samples(centre: np.ndarray, radius: float, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` points uniform in ``B_radius(centre) cap [0,1]^d`` by rejection (uniform in the
+def ball_samples(center: np.ndarray, radius: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` points uniform in ``B_radius(center) cap [0,1]^d`` by rejection (uniform in the
     ball: Gaussian direction, radius ``radius * U^{1/d}``). After 1000 rounds without enough
     accepted points the remaining ones are projected onto the cube."""
-    d = centre.shape[0]
+    d = center.shape[0]
     out: list[np.ndarray] = []
 
     def draw(k: int) -> np.ndarray:
         z = rng.standard_normal((k, d))
         z /= np.maximum(np.linalg.norm(z, axis=1, keepdims=True), 1e-300)
         r = radius * rng.random((k, 1)) ** (1.0 / d)
-        return centre + r * z
+        return center + r * z
 
     for _ in range(_MAX_REJECTION_ROUNDS):
         pts = draw(n)
@@ -115,58 +114,57 @@ class PrefSQP(LocalPhaseOptimizer):
         eigenvalue_floor: float = 1e-6,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        self.epsilon = check_float(epsilon, "epsilon", 0.0, 1e6, low_open=True)
+        self.epsilon = check_float("epsilon", epsilon, minimum=0.0, minimum_open=True)
         self.num_local_samples = (
             self.dim
             if num_local_samples is None
             else check_int("num_local_samples", num_local_samples)
         )
-        if line_search not in LINE_SEARCHES:
-            raise ValueError(f"line_search: must be one of {LINE_SEARCHES}, got {line_search!r}")
-        self.line_search = line_search
+        self.line_search = check_choice("line_search", line_search, LINE_SEARCHES)
         self.line_search_resolution = check_int(
             "line_search_resolution", line_search_resolution, minimum=2
         )
         self.num_features = check_int("num_features", num_features)
         self.eigenvalue_floor = check_float(
-            eigenvalue_floor, "eigenvalue_floor", 0.0, 1.0, low_open=True
+            "eigenvalue_floor", eigenvalue_floor, minimum=0.0, maximum=1.0, minimum_open=True
         )
         #: Newton directions of every completed phase (for inspection and tests).
         self.directions: list[np.ndarray] = []
 
     # ------------------------------------------------------------------ queries
     def _local_thetas(self, remaining: int) -> list[np.ndarray]:
-        assert self._centre_theta is not None
+        assert self._center_theta is not None
         rng = step_generator(self.seed, self._step)
         n = min(self.num_local_samples, remaining)
-        return list(ball_samples(self._centre_theta, self.epsilon, n, rng))
+        return list(ball_samples(self._center_theta, self.epsilon, n, rng))
 
     def _local_opponent(self) -> int:
-        assert self._centre_id is not None
-        return self._centre_id
+        assert self._center_id is not None
+        return self._center_id
 
     # ------------------------------------------------------------------ tell
     def _after_duels(
         self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
     ) -> None:
-        centre = self._centre_id
-        winners = sorted(o.winner for o in outcomes if o.loser == centre)
-        self._incumbent_id = winners[0] if winners else centre
+        center = self._center_id
+        winners = sorted(o.winner for o in outcomes if o.loser == center)
+        assert center is not None
+        self._set_incumbent(winners[0] if winners else center)
         surrogate = self._fit()
-        assert self._centre_theta is not None
-        x = torch.tensor(self._centre_theta, dtype=torch.float64)
-        g = surrogate.mean_gradient(x).detach().numpy()  # type: ignore[attr-defined]
-        H = surrogate.mean_hessian(x).detach().numpy()  # type: ignore[attr-defined]
+        assert self._center_theta is not None
+        x = torch.tensor(self._center_theta, dtype=torch.float64)
+        g = surrogate.mean_gradient(x).detach().numpy()
+        H = surrogate.mean_hessian(x).detach().numpy()
         if not (np.all(np.isfinite(g)) and np.all(np.isfinite(H))) or not np.any(g):
             p = np.zeros(self.dim)
         else:
             p = newton_direction(g, H, self.eigenvalue_floor)
         self.directions.append(p)
         rng = step_generator(self.seed, self._step, 1)
-        self._move_centre(self._line_search(surrogate, self._centre_theta, p, rng))
+        self._move_center(self._line_search(surrogate, self._center_theta, p, rng))
 
     def _line_search(
-        self, surrogate: object, x: np.ndarray, p: np.ndarray, rng: np.random.Generator
+        self, surrogate: Surrogate, x: np.ndarray, p: np.ndarray, rng: np.random.Generator
     ) -> np.ndarray:
         """Select the next iterate on the line (module docstring)."""
         if self.line_search == "full":
@@ -176,10 +174,10 @@ class PrefSQP(LocalPhaseOptimizer):
         with torch.no_grad():
             if self.line_search == "thompson":
                 gen = torch.Generator().manual_seed(int(rng.integers(0, 2**62)))
-                path = surrogate.sample_paths(1, gen, num_features=self.num_features)  # type: ignore[attr-defined]
+                path = surrogate.sample_paths(1, gen, num_features=self.num_features)
                 values = path(pts_t)[:, 0]
             else:
                 both = torch.cat([torch.tensor(x, dtype=torch.float64)[None], pts_t])
-                mean, cov = surrogate.posterior_mean_cov(both)  # type: ignore[attr-defined]
+                mean, cov = surrogate.posterior_mean_cov(both)
                 values = eubo_from_moments(mean, cov)
         return pts[int(torch.argmax(values))]

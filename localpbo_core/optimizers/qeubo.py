@@ -35,6 +35,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch
+from botorch.acquisition import AcquisitionFunction
 from botorch.acquisition.preference import (
     AnalyticExpectedUtilityOfBestOption,
     qExpectedUtilityOfBestOption,
@@ -45,12 +46,10 @@ from botorch.utils.sampling import manual_seed
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    check_int,
-    step_generator,
-)
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
+from localpbo_core.surrogate.protocol import Surrogate
+from localpbo_core.validation import SettingError, check_int
 
 
 class QEUBO(PreferenceOptimizer):
@@ -92,7 +91,7 @@ class QEUBO(PreferenceOptimizer):
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
         if self.num_restarts > self.num_raw_samples:
-            raise ValueError("num_restarts: must not exceed num_raw_samples")
+            raise SettingError("num_restarts", "must not exceed num_raw_samples")
         self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
@@ -101,7 +100,7 @@ class QEUBO(PreferenceOptimizer):
 
     # ------------------------------------------------------------------ state
     @property
-    def surrogate(self) -> object | None:
+    def surrogate(self) -> Surrogate | None:
         """The last fitted surrogate (None before the first iteration)."""
         return self._refitter.surrogate
 
@@ -113,24 +112,21 @@ class QEUBO(PreferenceOptimizer):
     # ------------------------------------------------------------------ ask
     def ask(self) -> Ask:
         """Next work; follow-up rounds of a q > 1 bracket are asks without candidates."""
-        if self._next_duels and not self._pending:
+        if self._next_duels and not self.pending_duels:
             duels = tuple(self._next_duels)
             self._next_duels = []
-            self._pending = list(duels)
-            self._duels.extend(duels)
-            self._step_outcomes = []
-            self._step_candidates = ()
-            return Ask((), duels)
+            return self._open_step(Ask((), duels))
         return super().ask()
 
-    def _fit(self) -> object:
+    def _fit(self) -> Surrogate:
         return self._refitter.refit(self.train_inputs(), self.comparisons())
 
     def select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Refit and maximise (q)EUBO over [0,1]^d; returns ``(q, d)``."""
         surrogate = self._fit()
-        model = SurrogateModel(surrogate)  # type: ignore[arg-type]
+        model = SurrogateModel(surrogate)
         seed = int(rng.integers(0, 2**31 - 1))
+        acq: AcquisitionFunction
         if q == 1:
             inc = self._candidates[self._require_incumbent()].theta
             acq = AnalyticExpectedUtilityOfBestOption(

@@ -1,8 +1,9 @@
 """Which evaluated candidate to hand to the user at the end of a run.
 
 An optimizer's ``incumbent`` is its king of the hill: the last candidate that won its duel
-against the previous incumbent. Under noisy preferences (paper eq. noise/pi) one lucky win can
-crown a worse candidate, and a run of them walks the incumbent down. The recommendation instead
+against the previous incumbent. Under noisy preferences (paper eqs. (2) "observation noise"
+and (3) "preference") one lucky win can crown a worse candidate, and a run of them walks the
+incumbent down. The recommendation instead
 weighs every duel of the run: it fits the pairwise GP of paper Sec. 4 (Laplace posterior,
 hyperparameters learned from the evidence) to all comparisons and returns the evaluated
 candidate with the highest posterior mean utility ``mu(x) = k(x, X) K^{-1} f_hat``. It reads
@@ -28,8 +29,7 @@ def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
         return optimizer.incumbent
     X = torch.tensor(optimizer.train_inputs(), dtype=torch.float64)
     # the optimizer's own last fit (TuRPBO, qEUBO, ...) is a warm start: one refit, not a cold fit
-    previous = getattr(optimizer, "surrogate", None)
-    warm = previous if isinstance(previous, PairwiseGPSurrogate) else None
+    warm = optimizer.surrogate
     if warm is not None and warm.dim != X.shape[1]:
         warm = None
     surrogate = PairwiseGPSurrogate.fit(

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from localpbo_core.optimizers.preference_optimizer import check_int
-from localpbo_core.surrogate import PairwiseGPSurrogate
+from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
+from localpbo_core.validation import check_int
 
 
 class SurrogateRefitter:
@@ -26,9 +26,9 @@ class SurrogateRefitter:
     def __init__(self, every: int = 1) -> None:
         self.every = check_int("hyperparameter_refit_every", every)
         self.fits = 0
-        self.surrogate: PairwiseGPSurrogate | None = None
+        self.surrogate: Surrogate | None = None
 
-    def refit(self, train_inputs: np.ndarray, comparisons: np.ndarray) -> PairwiseGPSurrogate:
+    def refit(self, train_inputs: np.ndarray, comparisons: np.ndarray) -> Surrogate:
         """Fit on ``train_inputs`` (n, d) in [0,1]^d and ``comparisons`` (m, 2) [winner, loser]."""
         X = torch.tensor(train_inputs, dtype=torch.float64)
         comps = torch.tensor(comparisons, dtype=torch.long)

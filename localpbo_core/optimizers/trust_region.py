@@ -2,7 +2,7 @@
 
 The rules are TuRBO's (Eriksson et al., 2019) with the preferential success test of
 App. C.5: an iteration succeeds iff some batch candidate is preferred to the incumbent.
-Hyperparameters follow the TuRPBO table (tab:turpbo_hyperparameters): ``L_init = 0.8``,
+Hyperparameters follow the TuRPBO hyperparameter table of App. C.5: ``L_init = 0.8``,
 ``L_min = 0.5**7``, ``L_max = 1.6``, ``tau_succ = d``, ``tau_fail = ceil(max(4/q, d/q))``.
 """
 
@@ -115,7 +115,7 @@ def perturbed_candidates(
 ) -> np.ndarray:
     """TuRBO's raw Thompson candidates: Sobol points in the box, where each coordinate is
     taken from the Sobol point with probability ``min(20/d, 1)`` and otherwise kept at the
-    centre (at least one coordinate per point is perturbed)."""
+    center (at least one coordinate per point is perturbed)."""
     from scipy.stats import qmc
 
     d = center.size

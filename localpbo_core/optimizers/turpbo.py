@@ -2,20 +2,20 @@
 
 Each iteration: refit the pairwise GP (learned hyperparameters, warm-started from the
 previous fit), build TuRBO's lengthscale-weighted box of side L around the trust-region
-centre, select q candidates in the box by Thompson sampling (default; pathwise sample
+center, select q candidates in the box by Thompson sampling (default; pathwise sample
 paths, TuRBO perturbation masks, 1024 raw samples, 5 L-BFGS-B restarts) or (q)EUBO, and
-duel every candidate against the centre. Success iff some candidate wins (App. C.5); the
+duel every candidate against the center. Success iff some candidate wins (App. C.5); the
 counters and L follow :class:`~localpbo_core.optimizers.trust_region.TrustRegionState`.
 
 Decisions not fixed by the paper (documented here, in the README and the report):
 
 * Several winners in one batch: the first winner in proposal order (lowest id) becomes
-  the new centre/incumbent (no extra comparisons).
+  the new center/incumbent (no extra comparisons).
 * Restart (L < L_min): all comparison data is kept (the GP is refit on everything); the
   next ask proposes one fresh uniform point (seed-derived), dueled against the global
-  incumbent; it becomes the centre of a new region of side L_init. While the centre is not
-  the global incumbent, candidates are dueled against the centre (TuRBO's local success
-  test) and each new centre is additionally dueled once against the global incumbent in
+  incumbent; it becomes the center of a new region of side L_init. While the center is not
+  the global incumbent, candidates are dueled against the center (TuRBO's local success
+  test) and each new center is additionally dueled once against the global incumbent in
   the next ask ("challenge" duel: one extra comparison, no extra evaluation), so the
   reported incumbent remains the preference-defined king of the hill. Without restarts
   every comparison is exactly a candidate against the incumbent (App. D.1 accounting).
@@ -30,11 +30,7 @@ import torch
 
 from localpbo_core.optimizers.acquisition import eubo_batch, thompson_batch
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    check_int,
-    step_generator,
-)
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.optimizers.trust_region import (
     TREvent,
@@ -42,6 +38,8 @@ from localpbo_core.optimizers.trust_region import (
     perturbed_candidates,
     trust_region_bounds,
 )
+from localpbo_core.surrogate.protocol import Surrogate
+from localpbo_core.validation import SettingError, check_choice, check_int
 
 ACQUISITIONS = ("ts", "qeubo")
 
@@ -81,29 +79,20 @@ class TuRPBO(PreferenceOptimizer):
         hyperparameter_refit_every: int = 1,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        check_int("batch_size", batch_size)
-        if acquisition not in ACQUISITIONS:
-            raise ValueError(f"acquisition: must be one of {ACQUISITIONS}, got {acquisition!r}")
-        for key, val in (
-            ("num_raw_samples", num_raw_samples),
-            ("num_restarts", num_restarts),
-            ("num_features", num_features),
-            ("num_mc_samples", num_mc_samples),
-            ("hyperparameter_refit_every", hyperparameter_refit_every),
-        ):
-            check_int(key, val)
-        if num_restarts > num_raw_samples:
-            raise ValueError("num_restarts: must not exceed num_raw_samples")
-        self.batch_size = batch_size
-        self.acquisition = acquisition
-        self.num_raw_samples = num_raw_samples
-        self.num_restarts = num_restarts
-        self.num_features = num_features
-        self.num_mc_samples = num_mc_samples
-        self.hyperparameter_refit_every = hyperparameter_refit_every
-        self.tr = TrustRegionState(dim=self.dim, batch_size=batch_size)
+        self.batch_size = check_int("batch_size", batch_size)
+        self.acquisition = check_choice("acquisition", acquisition, ACQUISITIONS)
+        self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
+        self.num_restarts = check_int("num_restarts", num_restarts)
+        self.num_features = check_int("num_features", num_features)
+        self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
+        self.hyperparameter_refit_every = check_int(
+            "hyperparameter_refit_every", hyperparameter_refit_every
+        )
+        if self.num_restarts > self.num_raw_samples:
+            raise SettingError("num_restarts", "must not exceed num_raw_samples")
+        self.tr = TrustRegionState(dim=self.dim, batch_size=self.batch_size)
         self._center_id: int | None = None
-        self._center_challenged = True  # centre known to be the global incumbent
+        self._center_challenged = True  # center known to be the global incumbent
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
         self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
@@ -112,18 +101,18 @@ class TuRPBO(PreferenceOptimizer):
     # ------------------------------------------------------------------ state
     @property
     def center(self) -> Candidate | None:
-        """Centre of the current trust region (the region's incumbent)."""
+        """Center of the current trust region (the region's incumbent)."""
         if self._center_id is None:
             return self.incumbent
         return self._candidates[self._center_id]
 
     @property
-    def surrogate(self) -> object | None:
+    def surrogate(self) -> Surrogate | None:
         """The last fitted surrogate (None before the first TuRPBO iteration)."""
         return self._refitter.surrogate
 
     # ------------------------------------------------------------------ model
-    def _fit(self) -> object:
+    def _fit(self) -> Surrogate:
         return self._refitter.refit(self.train_inputs(), self.comparisons())
 
     # ------------------------------------------------------------------ ask / tell hooks
@@ -149,20 +138,18 @@ class TuRPBO(PreferenceOptimizer):
     def _select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Candidates in the trust region (App. C.5, Alg. TurPBO lines 4-6)."""
         surrogate = self._fit()
-        center = self._candidates[self._center_id].theta  # type: ignore[index]
-        ls = surrogate.lengthscale  # type: ignore[attr-defined]
-        ls = ls.detach().numpy() if isinstance(ls, torch.Tensor) else np.asarray(ls)
+        assert self._center_id is not None  # set by _propose before selecting
+        center = self._candidates[self._center_id].theta
+        ls = surrogate.lengthscale.detach().numpy()
         lb, ub = trust_region_bounds(center, ls.reshape(-1), self.tr.length)
         raw = perturbed_candidates(center, lb, ub, self.num_raw_samples, rng)
         gen = torch.Generator().manual_seed(int(rng.integers(0, 2**62)))
         if self.acquisition == "ts":
-            path = surrogate.sample_paths(  # type: ignore[attr-defined]
-                q, gen, num_features=self.num_features
-            )
+            path = surrogate.sample_paths(q, gen, num_features=self.num_features)
             return thompson_batch(path, raw, lb, ub, num_restarts=self.num_restarts)
         base = torch.randn(self.num_mc_samples, q + 1, generator=gen, dtype=torch.float64)
         return eubo_batch(
-            surrogate.posterior_mean_cov,  # type: ignore[attr-defined]
+            surrogate.posterior_mean_cov,
             center,
             raw,
             lb,
@@ -178,7 +165,7 @@ class TuRPBO(PreferenceOptimizer):
     ) -> None:
         inc = self._require_incumbent()
         if self._restart_pending:
-            # The fresh point: global king-of-the-hill update; it centres the new region.
+            # The fresh point: global king-of-the-hill update; it centers the new region.
             self._update_king(outcomes)
             self._restart_pending = False
             self._center_id = candidates[0].id
@@ -189,7 +176,7 @@ class TuRPBO(PreferenceOptimizer):
             for o in outcomes:
                 if {o.winner, o.loser} == {self._challenge_duel.first, inc}:
                     if o.winner == center:
-                        self._incumbent_id = center
+                        self._set_incumbent(o.winner)
                     self._center_challenged = True
             self._challenge_duel = None
         new_ids = {c.id for c in candidates}
@@ -199,7 +186,7 @@ class TuRPBO(PreferenceOptimizer):
             was_king = center == self._incumbent_id
             self._center_id = winners[0]
             if was_king:
-                self._incumbent_id = winners[0]
+                self._set_incumbent(winners[0])
             self._center_challenged = was_king
         event = self.tr.update(success)
         self.events.append(event)

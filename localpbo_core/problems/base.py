@@ -17,18 +17,24 @@ import numpy as np
 
 @runtime_checkable
 class Problem(Protocol):
-    """A maximisation problem on [0,1]^d.
+    """A maximisation problem on [0,1]^d (read-only attributes: frozen dataclasses and plain
+    classes both satisfy it)."""
 
-    Attributes:
-        name: registry name, e.g. ``"hartmann6"`` or ``"hopper"``.
-        dim: dimension d of theta.
-        value_range: the approximate function-value range used to scale the oracle
-            noise (paper Sec. 6: noise std = 10% of the approximate value range).
-    """
+    @property
+    def name(self) -> str:
+        """Registry name, e.g. ``"hartmann6"`` or ``"hopper"``."""
+        ...
 
-    name: str
-    dim: int
-    value_range: float
+    @property
+    def dim(self) -> int:
+        """Dimension d of theta."""
+        ...
+
+    @property
+    def value_range(self) -> float:
+        """The approximate function-value range used to scale the oracle noise (paper Sec. 6:
+        noise std = 10% of the approximate value range)."""
+        ...
 
     def to_native(self, theta: np.ndarray) -> np.ndarray:
         """Map theta in [0,1]^d to the problem's own units (e.g. policy weights)."""
@@ -38,7 +44,7 @@ class Problem(Protocol):
         """One evaluation (e.g. one episode) of theta; ``seed`` fixes its randomness.
 
         This is the value a real experiment would produce; the oracle adds its own
-        comparison noise on top (paper eq. noise).
+        comparison noise on top (paper eq. (2) "observation noise").
         """
         ...
 

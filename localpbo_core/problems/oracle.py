@@ -25,8 +25,8 @@ import numpy as np
 
 from localpbo_core.seeds import duel_seed
 from localpbo_core.settings import DEFAULT_NOISE_FRACTION
+from localpbo_core.validation import SettingError, check_float, check_int
 
-from ._validation import check_seed
 from .base import Problem
 
 
@@ -54,7 +54,7 @@ class PreferenceOracle:
         self.problem = problem
         self.noise_fraction = float(noise_fraction)
         self.noise_std = noise_std(problem, noise_fraction)
-        self.seed = check_seed(seed)
+        self.seed = check_int("seed", seed, minimum=0)
         self._rng = np.random.default_rng(self.seed)
         self.comparisons = 0
 
@@ -92,7 +92,7 @@ class DuelOracle:
     ) -> None:
         self.noise_fraction = float(noise_fraction)
         self.noise_std = noise_std(problem, noise_fraction)
-        self.run_seed = check_seed(run_seed)
+        self.run_seed = check_int("run_seed", run_seed, minimum=0)
 
     def first_wins(self, duel_id: int, value_first: float, value_second: float) -> bool:
         """True if the first candidate of duel ``duel_id`` is preferred (eq. (3))."""
@@ -105,26 +105,20 @@ def noise_std(problem: Problem, noise_fraction: float) -> float:
     """``noise_fraction * problem.value_range`` (0 for a noise-free oracle).
 
     Raises:
-        ValueError: ``noise_fraction`` is not a finite number >= 0, or is > 0 for a problem
+        SettingError: ``noise_fraction`` is not a finite number >= 0, or is > 0 for a problem
             without a positive finite value range.
     """
-    if (
-        isinstance(noise_fraction, bool)
-        or not isinstance(noise_fraction, int | float)
-        or not math.isfinite(noise_fraction)
-    ):
-        raise ValueError(f"noise_fraction: expected a finite number, got {noise_fraction!r}")
-    if noise_fraction < 0:
-        raise ValueError(f"noise_fraction: must be >= 0, got {noise_fraction!r}")
-    if noise_fraction == 0:
+    fraction = check_float("noise_fraction", noise_fraction, minimum=0.0)
+    if fraction == 0:
         return 0.0
     value_range = float(problem.value_range)
     if not (math.isfinite(value_range) and value_range > 0):
-        raise ValueError(
-            f"value_range: problem {problem.name!r} has value_range {value_range!r}; "
-            "a positive finite range is needed for noise_fraction > 0"
+        raise SettingError(
+            "noise_fraction",
+            f"needs a positive finite value range; problem {problem.name!r} has "
+            f"{value_range!r} (set the problem's value_range)",
         )
-    return float(noise_fraction) * value_range
+    return fraction * value_range
 
 
 def _noisy_pair(
@@ -132,7 +126,6 @@ def _noisy_pair(
 ) -> tuple[float, float]:
     """``(y_a, y_b)`` of eq. (2): two standard normals from ``rng``, first for a."""
     for label, value in (("value_a", value_a), ("value_b", value_b)):
-        if not math.isfinite(float(value)):
-            raise ValueError(f"{label}: expected a finite value, got {value!r}")
+        check_float(label, value)
     eps = rng.standard_normal(2)
     return float(value_a) + std * float(eps[0]), float(value_b) + std * float(eps[1])

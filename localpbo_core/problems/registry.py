@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from localpbo_core.validation import SettingError
+
 from .base import Problem
 from .synthetic import SYNTHETIC_PROBLEMS, make_synthetic
 
@@ -32,10 +34,10 @@ def make_problem(name: str, **options: Any) -> Problem:
         ValueError: unknown name (the message lists the valid ones) or unknown option.
     """
     if not isinstance(name, str) or name not in available_problems():
-        raise ValueError(f"problem: unknown problem {name!r}; valid: {available_problems()}")
+        raise SettingError("problem", f"unknown problem {name!r}; valid: {available_problems()}")
     if name in SYNTHETIC_PROBLEMS:
         if options:
-            raise ValueError(f"{sorted(options)[0]}: {name} takes no options")
+            raise SettingError(sorted(options)[0], f"{name} takes no options")
         return make_synthetic(name)
     try:
         import localpbo_sims
@@ -53,5 +55,5 @@ def make_problem(name: str, **options: Any) -> Problem:
     }
     unknown = sorted(set(options) - allowed)
     if unknown:
-        raise ValueError(f"{unknown[0]}: unknown option for {name}; valid: {sorted(allowed)}")
+        raise SettingError(unknown[0], f"unknown option for {name}; valid: {sorted(allowed)}")
     return localpbo_sims.make_task(name, **options)

@@ -10,7 +10,7 @@ normalization"): ``x = lower + (upper - lower) * theta``.
 scrambled Sobol sequence, ``scipy.stats.qmc.Sobol(d, scramble=True, seed=0)``, computed
 offline by ``python -m localpbo_core.problems.calibrate --problem NAME --points 10000``; the
 oracle's noise std is a fraction of it (paper Sec. 6: "10% of the approximated function
-value range", eq. noise).
+value range", eq. (2) "observation noise").
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import check_seed, check_theta
+from localpbo_core.validation import SettingError, check_int, check_theta
 
 _HARTMANN6_ALPHA = np.array([1.0, 1.2, 3.0, 3.2])
 _HARTMANN6_A = np.array(
@@ -93,7 +93,7 @@ class SyntheticProblem:
 
     def to_native(self, theta: np.ndarray) -> np.ndarray:
         """``lower + (upper - lower) * theta``."""
-        arr = check_theta(theta, self.dim, self.name)
+        arr = check_theta("theta", theta, self.dim)
         return self.lower + (self.upper - self.lower) * arr
 
     def from_native(self, x: np.ndarray) -> np.ndarray:
@@ -109,9 +109,11 @@ class SyntheticProblem:
         """Vectorised negated values for an (n, d) array of thetas in [0,1]^d."""
         arr = np.asarray(thetas, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != self.dim:
-            raise ValueError(f"thetas: expected shape (n, {self.dim}), got {arr.shape}")
-        if not np.all(np.isfinite(arr)) or np.any(arr < 0.0) or np.any(arr > 1.0):
-            raise ValueError(f"thetas: entries must be finite and in [0, 1] for {self.name}")
+            raise SettingError("thetas", f"expected shape (n, {self.dim}), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise SettingError("thetas", "contains NaN or inf")
+        if np.any(arr < 0.0) or np.any(arr > 1.0):
+            raise SettingError("thetas", f"must lie in [0, 1]^{self.dim}")
         return -self.minimise_fn(self.lower + (self.upper - self.lower) * arr)
 
     def true_value(self, theta: np.ndarray) -> float:
@@ -120,19 +122,17 @@ class SyntheticProblem:
 
     def evaluate(self, theta: np.ndarray, seed: int) -> float:
         """Same as ``true_value`` (the function is deterministic; ``seed`` is only checked)."""
-        check_seed(seed)
+        check_int("seed", seed, minimum=0)
         return self.true_value(theta)
 
     def evaluate_native(self, x: np.ndarray, seed: int) -> float:
         """Negated function value at native ``x`` (inside the box ``[lower, upper]^d``)."""
-        check_seed(seed)
+        check_int("seed", seed, minimum=0)
         arr = np.asarray(x, dtype=np.float64)
         if arr.shape != (self.dim,):
-            raise ValueError(f"x: expected shape ({self.dim},) for {self.name}, got {arr.shape}")
+            raise SettingError("x", f"expected shape ({self.dim},), got {arr.shape}")
         if not np.all(np.isfinite(arr)) or np.any(arr < self.lower) or np.any(arr > self.upper):
-            raise ValueError(
-                f"x: entries must be finite and in [{self.lower}, {self.upper}] for {self.name}"
-            )
+            raise SettingError("x", f"must be finite and lie in [{self.lower}, {self.upper}]^d")
         return float(-self.minimise_fn(arr))
 
 

@@ -1,12 +1,12 @@
 """The Laplace evidence of the pairwise GP and its gradient computed in duel space.
 
-The probit likelihood of paper Sec. 4 (eq. likelihood, sigma_n = 1) depends on the utilities
+The probit likelihood of paper Sec. 4 (eq. (5) "likelihood", sigma_n = 1) depends on the utilities
 only through the duel differences ``g = H f`` (row n of ``H`` is ``e_{x_n^+} - e_{x_n^-}``):
 ``p(D | f) = prod_n Phi(g_n / sqrt(2))``. Under the GP prior ``f ~ N(0, K)`` they are Gaussian,
 ``g ~ N(0, M)`` with ``M = H K H^T`` (``m x m``, positive semi-definite), so the Laplace
 approximation of paper Sec. 4 is Rasmussen & Williams' (2006) GP classification in ``g``:
 
-* mode: Newton's method of R&W Alg. 3.1 with ``W = diag(c)`` (``c`` of eq. C), the
+* mode: Newton's method of R&W Alg. 3.1 with ``W = diag(c)`` (``c`` of eq. (8)), the
   well-conditioned ``B = I + W^1/2 M W^1/2`` and the dual vector ``a`` with ``g = M a``
   (``f_hat = K H^T a``; at the mode ``a = grad log p(D | g)``);
 * evidence (Chu & Ghahramani 2005, eq. 12): ``-0.5 a^T g + sum_n log Phi(z_n) -

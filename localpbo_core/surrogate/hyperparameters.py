@@ -131,7 +131,7 @@ def kernel_hyperparameter_gradient(
     * ``dK_j / dlog s = K_j``, so ``dE/dlog s = sum(G * K) + jitter * s * tr(G)``;
     * ``dK_ij / dlog l_k = K_ij (x_ik - x_jk)^2 / l_k^2``, so with ``P = G * K`` (symmetric) and
       ``y = x / l``: ``dE/dlog l_k = 2 (sum_i P_i. y_ik^2 - sum_i y_ik (P y)_ik)``, ``O(p^2 d)``.
-      ``X`` is centred first (translation invariance) to limit cancellation.
+      ``X`` is centered first (translation invariance) to limit cancellation.
 
     Returns ``(dE/dlog l (d,), dE/dlog s (0-d))``.
     """
@@ -199,9 +199,22 @@ def evaluate_with_gradient(
         prior = log_hyperprior(log_ls.exp(), log_os.exp())
         prior.backward()
         value += float(prior.detach())
-        grad_ls = grad_ls + log_ls.grad  # type: ignore[operator]
-        grad_os = grad_os + log_os.grad  # type: ignore[operator]
+        assert log_ls.grad is not None and log_os.grad is not None  # set by backward()
+        grad_ls = grad_ls + log_ls.grad
+        grad_os = grad_os + log_os.grad
     return value, grad_ls, grad_os, f_hat
+
+
+@dataclass
+class _SearchState:
+    """What the hyperparameter search carries between objective evaluations: the MAP that
+    warm-starts the next Laplace solve, the evaluation count and the best point so far."""
+
+    f: Tensor
+    n: int = 0
+    best_value: float = -math.inf
+    best_theta: np.ndarray | None = None
+    best_f: Tensor | None = None
 
 
 def learn_hyperparameters(
@@ -249,8 +262,7 @@ def learn_hyperparameters(
     if learn_outputscale:
         x0.append(min(max(math.log(outputscale0), os_lo), os_hi))
         bounds.append((os_lo, os_hi))
-    state = {"f": f_init.detach().clone(), "n": 0}
-    best: dict[str, object] = {"value": -math.inf}
+    state = _SearchState(f=f_init.detach().clone())
 
     def unpack(theta: Tensor) -> tuple[Tensor, Tensor]:
         ls = theta[:d].exp() if learn_lengthscale else lengthscale0.detach().clone()
@@ -266,7 +278,7 @@ def learn_hyperparameters(
         if use_analytic:
             ls, os_ = unpack(torch.tensor(x, dtype=torch.float64))
             val, g_ls, g_os, f_hat = evaluate_with_gradient(
-                X, winners, losers, ls, float(os_), state["f"], jitter, z_limit, form=form
+                X, winners, losers, ls, float(os_), state.f, jitter, z_limit, form=form
             )
             parts = ([-g_ls] if learn_lengthscale else []) + (
                 [-g_os.reshape(1)] if learn_outputscale else []
@@ -275,17 +287,17 @@ def learn_hyperparameters(
         else:
             theta = torch.tensor(x, dtype=torch.float64, requires_grad=True)
             ls, os_ = unpack(theta)
-            value, v1, L = evaluate(X, winners, losers, ls, os_, state["f"], jitter, z_limit)
+            value, v1, L = evaluate(X, winners, losers, ls, os_, state.f, jitter, z_limit)
             if value.requires_grad:
                 (-value).backward()
             val = float(value.detach())
             grad = theta.grad.numpy().copy() if theta.grad is not None else np.zeros_like(x)
             f_hat = (L @ v1).detach()
-        state["n"] = int(state["n"]) + 1
+        state.n += 1
         if math.isfinite(val):
-            state["f"] = f_hat
-            if val > float(best["value"]):  # type: ignore[arg-type]
-                best.update(value=val, theta=x.copy(), f=f_hat)
+            state.f = f_hat
+            if val > state.best_value:
+                state.best_value, state.best_theta, state.best_f = val, x.copy(), f_hat
         if not math.isfinite(val) or not np.isfinite(grad).all():
             return 1e300, np.zeros_like(x)
         return -val, grad
@@ -311,16 +323,16 @@ def learn_hyperparameters(
         )
     else:
         fun_typed(np.zeros(0))
-    if "theta" not in best:
+    if state.best_theta is None or state.best_f is None:
         raise ValueError("the Laplace evidence is not finite at any evaluated hyperparameters")
     with torch.no_grad():
-        ls, os_ = unpack(torch.tensor(best["theta"], dtype=torch.float64))
+        ls, os_ = unpack(torch.tensor(state.best_theta, dtype=torch.float64))
         K = se_kernel(X, X, ls, os_)
         L, j = _cholesky_and_jitter(K, os_, jitter)
         # f is one Newton step from the converged MAP: a final solve only polishes it.
-        v0 = torch.linalg.solve_triangular(L, best["f"].unsqueeze(-1), upper=False)  # type: ignore[union-attr]
+        v0 = torch.linalg.solve_triangular(L, state.best_f.unsqueeze(-1), upper=False)
         v_hat, _ = find_map(L, winners, losers, v0.squeeze(-1), z_limit)
-        value = float(best["value"])  # type: ignore[arg-type]
+        value = state.best_value
         if j != jitter:  # K needed more jitter than the search used: report its evidence
             value = float(evaluate(X, winners, losers, ls, os_, L @ v_hat, jitter, z_limit)[0])
     return FitResult(
@@ -329,6 +341,6 @@ def learn_hyperparameters(
         v_hat=v_hat,
         L=L,
         log_marginal_likelihood=value,
-        n_evaluations=int(state["n"]),
+        n_evaluations=state.n,
         curvature=curvature,
     )

@@ -1,13 +1,13 @@
 """Scaled ARD squared-exponential kernel and its derivatives.
 
-The prior of the pairwise GP (paper Sec. 4, "Prior"; App. C.2 table
-``tab:shared_pairwisegp_hyperparameters``) is ``ScaleKernel(RBFKernel(ard))``:
+The prior of the pairwise GP (paper Sec. 4, "Prior"; the shared pairwise-GP settings of
+App. D.2) is ``ScaleKernel(RBFKernel(ard))``:
 
     k(x, x') = s * exp(-0.5 * sum_i (x_i - x'_i)^2 / l_i^2).
 
-The derivative kernels ``k_a(x, X) = L_{a,x} K(x, X)`` of eq. (general_covariance_block) and the
-prior blocks ``L_{a,x} L_{b,x'} k(x, x')|_{x'=x}`` are given in closed form here. With
-``Lambda = diag(1 / l^2)`` and ``r_j = Lambda (x - X_j)``:
+The derivative kernels ``k_a(x, X) = L_{a,x} K(x, X)`` of paper eq. (11) "general covariance
+block" and the prior blocks ``L_{a,x} L_{b,x'} k(x, x')|_{x'=x}`` are given in closed form here.
+With ``Lambda = diag(1 / l^2)`` and ``r_j = Lambda (x - X_j)``:
 
     k_0(x, X_j) = k(x, X_j)
     k_1(x, X_j) = -k(x, X_j) r_j                              (d,)
@@ -43,7 +43,7 @@ def se_kernel_exact(
 def kernel_derivatives(
     x: Tensor, X: Tensor, lengthscale: Tensor, outputscale: Tensor | float, order: int
 ) -> tuple[Tensor, ...]:
-    """Derivative kernels ``k_0, k_1, k_2`` of eq. (general_covariance_block) up to ``order``.
+    """Derivative kernels ``k_0, k_1, k_2`` of eq. (11) "general covariance block" up to ``order``.
 
     Args:
         x: query points ``(N, d)``.
@@ -66,7 +66,7 @@ def kernel_derivatives(
 
 
 def prior_block(a: int, b: int, lengthscale: Tensor, outputscale: Tensor | float) -> Tensor:
-    """Prior block ``L_{a,x} L_{b,x'} k(x, x')|_{x'=x}`` of eq. (general_covariance_block).
+    """Prior block ``L_{a,x} L_{b,x'} k(x, x')|_{x'=x}`` of eq. (11) "general covariance block".
 
     Stationarity gives (``Lambda = diag(1/l^2)``, Hessians vectorised row-major, ``D = d^2``):
     ``00 = s``, ``01 = 0``, ``02 = -s vec(Lambda)``, ``11 = s Lambda``, ``12 = 0``,

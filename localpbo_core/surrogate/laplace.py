@@ -1,11 +1,11 @@
 """Laplace approximation of the pairwise GP posterior (paper Sec. 4, "Posterior").
 
-Probit likelihood with the BoTorch noise convention sigma_n = 1 (eq. likelihood):
+Probit likelihood with the BoTorch noise convention sigma_n = 1 (eq. (5) "likelihood"):
 ``z_n = (f(x_n^+) - f(x_n^-)) / sqrt(2)``, ``p(D | f) = prod_n Phi(z_n)``.
 
 The MAP ``f_hat = argmin S(f)``, ``S(f) = -sum_n log Phi(z_n) + 0.5 f^T K^{-1} f`` is found by
 Newton's method in the whitened variable ``v`` with ``f = L v``, ``K = L L^T``:
-``S(v) = -log p(D | L v) + 0.5 v^T v`` has Hessian ``B = I + L^T C L`` (``C`` of eq. C), which is
+``S(v) = -log p(D | L v) + 0.5 v^T v`` has Hessian ``B = I + L^T C L`` (``C`` of eq. (8)), which is
 well conditioned (eigenvalues >= 1), so the Newton step
 ``v <- B^{-1} L^T (C f + grad log p(D | f))`` needs only a Cholesky factor of ``B``.
 
@@ -39,7 +39,7 @@ class ProbitTerms:
 
 
 def probit_terms(f: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None) -> ProbitTerms:
-    """z-scores of eq. (likelihood); ``z_limit`` clamps z as BoTorch does (None = exact)."""
+    """z-scores of eq. (5) "likelihood"; ``z_limit`` clamps z as BoTorch does (None = exact)."""
     return probit_terms_of_differences(f[winners] - f[losers], z_limit)
 
 
@@ -57,11 +57,11 @@ def probit_terms_of_differences(g: Tensor, z_limit: float | None) -> ProbitTerms
 
 
 def hessian_weights(t: ProbitTerms, jacobian: bool = False) -> Tensor:
-    """Per-duel weights ``c_n = 0.5 (hazard_n^2 + z_n hazard_n)`` of eq. (C) (sigma_n = 1).
+    """Per-duel weights ``c_n = 0.5 (hazard_n^2 + z_n hazard_n)`` of eq. (8) (sigma_n = 1).
 
     With BoTorch's clamp they are evaluated at the clamped ``z`` (BoTorch's ``likelihood_hess``);
     ``jacobian=True`` instead gives the true Jacobian of the clamped gradient (zero weight for
-    clamped duels), which Newton's method needs. Without a clamp both are eq. (C)."""
+    clamped duels), which Newton's method needs. Without a clamp both are eq. (8)."""
     c = 0.5 * t.hazard * (t.hazard + t.z)
     if jacobian:
         c = torch.where(t.active, c, torch.zeros_like(c))
@@ -71,7 +71,7 @@ def hessian_weights(t: ProbitTerms, jacobian: bool = False) -> Tensor:
 def likelihood_hessian(
     t: ProbitTerms, winners: Tensor, losers: Tensor, p: int, jacobian: bool = False
 ) -> Tensor:
-    """The matrix ``C = sum_n c_n h_n h_n^T`` of eq. (C), dense ``(p, p)``, PSD (see
+    """The matrix ``C = sum_n c_n h_n h_n^T`` of eq. (8), dense ``(p, p)``, PSD (see
     :func:`hessian_weights`)."""
     c = hessian_weights(t, jacobian)
     flat = torch.zeros(p * p, dtype=c.dtype)
@@ -204,7 +204,7 @@ def log_evidence(
 
 
 def hessian_weight_slope(t: ProbitTerms) -> Tensor:
-    """``dc_n / dz_n`` of the weights of eq. (C): with ``h = phi(z) / Phi(z)`` and
+    """``dc_n / dz_n`` of the weights of eq. (8): with ``h = phi(z) / Phi(z)`` and
     ``dh/dz = -h (z + h)``, ``c = 0.5 h (h + z)`` gives ``dc/dz = 0.5 h (1 - (z + h)(z + 2h))``.
     Zero where BoTorch's clamp is active (the clamped ``c`` is constant there)."""
     h, z = t.hazard, t.z
@@ -227,7 +227,7 @@ def log_evidence_and_kernel_gradient(
     the value-and-gradient counterpart of :func:`log_evidence` without autograd.
 
     Rasmussen & Williams (2006) Alg. 5.1 generalised to the non-diagonal ``C = H^T diag(c) H``
-    of eq. (C) (and to BoTorch's clamp of ``z``):
+    of eq. (8) (and to BoTorch's clamp of ``z``):
 
     * explicit part ``0.5 alpha alpha^T - 0.5 A`` with ``alpha = K^{-1} f_hat`` and
       ``A = C (I + K C)^{-1} = H^T (diag(c) - diag(c) Z^T Z diag(c)) H``,

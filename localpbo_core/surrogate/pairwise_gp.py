@@ -2,7 +2,8 @@
 
 Laplace-approximated pairwise GP with probit likelihood (sigma_n = 1, BoTorch convention), an
 ARD squared-exponential ``ScaleKernel`` prior, and the joint posterior of ``f``, ``grad f`` and
-``vec(hess f)`` at any point (eqs. joint_derivative_predictive, general_covariance_block).
+``vec(hess f)`` at any point (paper eqs. (10) "joint derivative predictive" and (11) "general
+covariance block").
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .hyperparameters import (
 )
 from .kernel import kernel_derivatives, prior_block, se_kernel, se_kernel_exact
 from .laplace import hessian_weights, likelihood_hessian, probit_terms, whitened_precision
+from .protocol import Surrogate
 
 # The start of a cold fit: BoTorch's initial values under the paper's constraints (raw
 # parameter 0 of Interval(0.05, 0.5) and Interval(0.005, 200), i.e. the interval midpoints).
@@ -70,7 +72,7 @@ def _check_outputscale(outputscale: object) -> float | None:
     return value
 
 
-class PairwiseGPSurrogate:
+class PairwiseGPSurrogate(Surrogate):
     """Laplace-approximated pairwise GP with derivative-aware posterior (paper Sec. 4).
 
     Build with :meth:`fit`. Attributes: ``lengthscale`` ``(d,)``, ``outputscale`` (float),
@@ -78,7 +80,7 @@ class PairwiseGPSurrogate:
     ``log_marginal_likelihood`` (Laplace evidence + log hyperpriors at the fit),
     ``winners``/``losers`` (duels as indices into ``train_inputs``), ``index_map`` (row of the
     fitted ``X`` -> row of ``train_inputs``), ``eps_reg``, ``z_limit``, ``jitter``,
-    ``likelihood_hessian`` (``C`` of eq. C), ``chol_K``, ``chol_B``.
+    ``likelihood_hessian`` (``C`` of eq. (8)), ``chol_K``, ``chol_B``.
     """
 
     def __init__(
@@ -130,7 +132,7 @@ class PairwiseGPSurrogate:
 
     @property
     def likelihood_hessian(self) -> Tensor:
-        """``C`` of eq. (C) at the MAP, dense ``(p, p)`` (without ``eps_reg``)."""
+        """``C`` of eq. (8) at the MAP, dense ``(p, p)`` (without ``eps_reg``)."""
         return likelihood_hessian(self._probit, self.winners, self.losers, self.utility.shape[0])
 
     # ------------------------------------------------------------------ construction
@@ -141,7 +143,7 @@ class PairwiseGPSurrogate:
         comparisons: Tensor,
         lengthscale: float | Tensor | None = None,
         outputscale: float | None = None,
-        warm_start: PairwiseGPSurrogate | None = None,
+        warm_start: Surrogate | None = None,
         *,
         z_limit: float | None = None,
         eps_reg: float = 0.0,
@@ -345,7 +347,7 @@ class PairwiseGPSurrogate:
     def covariance_blocks(
         self, x: Tensor, orders: tuple[int, ...] = (0, 1, 2), eps_reg: float | None = None
     ) -> dict[str, Tensor]:
-        """Blocks ``Sigma_ab`` of eq. (general_covariance_block) for ``a <= b`` in ``orders``:
+        """Blocks ``Sigma_ab`` of eq. (11) "general covariance block" for ``a <= b`` in ``orders``:
 
         ``Sigma_ab = L_a L_b' k(x, x')|_{x'=x} - k_a(x, X) (K + C_hat^{-1})^{-1} k_b(X, x)``.
 
@@ -382,12 +384,13 @@ class PairwiseGPSurrogate:
         return out
 
     def variance(self, x: Tensor) -> Tensor:
-        """Posterior variance ``Sigma_00(x)`` (eq. general_covariance_block). 0-d or ``(N,)``."""
+        """Posterior variance ``Sigma_00(x)`` (eq. (11) "general covariance block"): 0-d or
+        ``(N,)``."""
         return self.covariance_blocks(x, orders=(0,))["00"]
 
     def gradient_covariance(self, x: Tensor, eps_reg: float | None = None) -> Tensor:
-        """``Sigma_11(x)`` of eq. (general_covariance_block), the gradient covariance used by
-        GIPBO (eq. PairwiseGP_Jac_variance). ``(d, d)`` or ``(N, d, d)``."""
+        """``Sigma_11(x)`` of eq. (11) "general covariance block", the gradient covariance used by
+        GIPBO (eq. (15) "pairwise-GP Jacobian variance"). ``(d, d)`` or ``(N, d, d)``."""
         return self.covariance_blocks(x, orders=(1,), eps_reg=eps_reg)["11"]
 
     def posterior_mean_cov(self, Xq: Tensor) -> tuple[Tensor, Tensor]:

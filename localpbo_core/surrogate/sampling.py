@@ -1,5 +1,5 @@
 """Posterior sample paths of the Laplace-approximated pairwise GP (paper Sec. 4; used by TuRPBO
-for Thompson sampling, paper Sec. TuRPBO / App. D).
+for Thompson sampling, paper Sec. 5.3 "TuRPBO" and App. C.5, and by PrefSQP's line search).
 
 Pathwise (Matheron) conditioning: with a prior path ``g`` and a draw ``f_X`` of the Laplace
 posterior ``q(f_X) = N(f_hat, (K^{-1} + C_hat)^{-1})`` at the training points,
@@ -7,7 +7,7 @@ posterior ``q(f_X) = N(f_hat, (K^{-1} + C_hat)^{-1})`` at the training points,
     path(x) = g(x) + k(x, X) K^{-1} (f_X - g(X))
 
 has exactly the Laplace predictive mean ``k(x, X) K^{-1} f_hat`` and covariance
-``k(x, x') - k(x, X) (K + C_hat^{-1})^{-1} k(X, x')`` of eq. (general_covariance_block) when
+``k(x, x') - k(x, X) (K + C_hat^{-1})^{-1} k(X, x')`` of eq. (11) "general covariance block" when
 ``g`` is an exact prior draw. ``g`` uses random Fourier features of the SE-ARD kernel,
 ``g(x) = sqrt(2 s / F) sum_f w_f cos(omega_f^T x + b_f)``, ``omega_f ~ N(0, diag(1/l^2))``,
 ``b_f ~ U(0, 2 pi)``, ``w_f ~ N(0, 1)``; every path draws its own frequencies, so the prior
@@ -37,7 +37,7 @@ from torch import Tensor
 from .kernel import se_kernel
 
 if TYPE_CHECKING:
-    from .pairwise_gp import PairwiseGPSurrogate
+    from .protocol import Surrogate
 
 
 class SamplePaths:
@@ -196,7 +196,7 @@ def _rff_values(x_aug: np.ndarray, w_aug: np.ndarray, aw: np.ndarray) -> np.ndar
 
 
 def draw_sample_paths(
-    surrogate: PairwiseGPSurrogate,
+    surrogate: Surrogate,
     num_paths: int,
     generator: torch.Generator,
     num_features: int = 1024,

@@ -1,15 +1,16 @@
 """Batched Laplace refits of the pairwise GP with one extra *virtual* duel (paper Sec. 5.1,
-eq. GI_PBO_acf_detailed; App. C.2 "Preferential GI acquisition evaluation").
+eq. (16) "GIPBO acquisition"; App. C.2 "Preferential GI acquisition evaluation").
 
 For a batch of virtual datasets ``D_b = {D, (w_b > l_b)}`` that extend the fitted data by
 ``k`` new points ``Z_b`` (the same ``k`` for the whole batch) and one duel, this module
 re-solves the Laplace MAP at the FIXED hyperparameters of a fitted
 :class:`~localpbo_core.surrogate.pairwise_gp.PairwiseGPSurrogate`, for all ``b`` at once, and
-returns ``tr Sigma_11(x_c | D_b)`` of eq. (PairwiseGP_Jac_variance) at a query point ``x_c``.
+returns ``tr Sigma_11(x_c | D_b)`` of paper eq. (15) "pairwise-GP Jacobian variance" at a query
+point ``x_c``.
 
 Everything is done in *duel space* (dimension ``m + 1``, the number of duels), exact:
 
-* ``C = H^T D H`` (eq. C) with ``H`` the ``(m, P)`` duel incidence matrix (rows
+* ``C = H^T D H`` (eq. (8)) with ``H`` the ``(m, P)`` duel incidence matrix (rows
   ``h_n = e_{w_n} - e_{l_n}``) and ``D = diag(c_n)``. With ``A = D^{1/2} H`` and
   ``Q = H K H^T``, Woodbury gives
   ``k_a^T (K + C^{-1})^{-1} k_b = (A k_a)^T M^{-1} (A k_b)``, ``M = I + D^{1/2} Q D^{1/2}``
@@ -18,7 +19,7 @@ Everything is done in *duel space* (dimension ``m + 1``, the number of duels), e
   ``alpha_n = hazard_n / sqrt(2)``; Newton's method (R&W Alg. 3.1) keeps ``f = K H^T alpha``,
   so it runs on ``alpha`` with ``H f = Q alpha`` and ``f^T K^{-1} f = alpha^T Q alpha``:
   ``beta = D H f + hazard / sqrt(2)``, ``alpha <- beta - D^{1/2} M^{-1} D^{1/2} Q beta``.
-* Warm start (issue 5, item 5): ``[alpha_hat, 0]`` is EXACTLY the current MAP extended to
+* Warm start: ``[alpha_hat, 0]`` is EXACTLY the current MAP extended to
   ``Z`` by the posterior mean (``mu(Z) = K(Z, X) K^{-1} f_hat = K(Z, X) H^T alpha_hat``), so
   Newton only has to absorb the virtual duel (typically 3-5 iterations).
 * ``Q``'s old block ``H K H^T = (H L)(H L)^T`` is shared by the whole batch; only the virtual
@@ -43,7 +44,7 @@ from torch import Tensor
 
 from .kernel import kernel_derivatives, se_kernel_exact
 from .laplace import SQRT2
-from .pairwise_gp import PairwiseGPSurrogate
+from .protocol import Surrogate
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -54,7 +55,7 @@ class VirtualFit:
 
     Attributes:
         alpha: ``(B, m+1)`` MAP coefficients, ``f_hat = K_ext H^T alpha``.
-        sqrt_c: ``(B, m+1)`` ``D^{1/2}`` at the MAP (eq. C weights).
+        sqrt_c: ``(B, m+1)`` ``D^{1/2}`` at the MAP (eq. (8) weights).
         chol_M: ``(B, m+1, m+1)`` Cholesky of ``I + D^{1/2} Q D^{1/2}``.
         new_points: ``(B, k, d)``; winners, losers: ``(B,)`` virtual duel indices.
         iterations: Newton iterations used.
@@ -70,7 +71,7 @@ class VirtualFit:
 
 
 def _probit(z: Tensor) -> tuple[Tensor, Tensor]:
-    """``log Phi(z)`` and the hazard ``phi(z) / Phi(z)`` (eq. likelihood, sigma_n = 1)."""
+    """``log Phi(z)`` and the hazard ``phi(z) / Phi(z)`` (eq. (5) "likelihood", sigma_n = 1)."""
     log_cdf = torch.special.log_ndtr(z)
     hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
     return log_cdf, hazard
@@ -82,9 +83,7 @@ def _chol_solve(b: Tensor, L: Tensor) -> Tensor:
     return torch.linalg.solve_triangular(L.transpose(-1, -2), y, upper=True)
 
 
-def _extended_rows(
-    surrogate: PairwiseGPSurrogate, new_points: Tensor, idx: Tensor
-) -> tuple[Tensor, Tensor]:
+def _extended_rows(surrogate: Surrogate, new_points: Tensor, idx: Tensor) -> tuple[Tensor, Tensor]:
     """Rows ``idx_b`` of the jittered extended kernel ``K([X; Z_b], [X; Z_b])``, split into the
     ``X`` part ``(B, p)`` and the ``Z`` part ``(B, k)``."""
     X, L = surrogate.train_inputs, surrogate.chol_K
@@ -111,7 +110,7 @@ def _extended_rows(
 
 @torch.no_grad()
 def virtual_refit(
-    surrogate: PairwiseGPSurrogate,
+    surrogate: Surrogate,
     new_points: Tensor,
     winners: Tensor,
     losers: Tensor,
@@ -233,7 +232,7 @@ def virtual_refit(
     # --- exact Newton polish (normally one step); its last factor gives the covariance
 
     def chol_m(hazard: Tensor, z: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        c = 0.5 * hazard * (hazard + z)  # eq. (C) weights
+        c = 0.5 * hazard * (hazard + z)  # eq. (8) weights
         sc = c.sqrt()
         M = Q * sc.unsqueeze(-2)
         M.mul_(sc.unsqueeze(-1)).diagonal(dim1=-2, dim2=-1).add_(1.0)
@@ -265,8 +264,8 @@ def virtual_refit(
 
 
 @torch.no_grad()
-def gradient_covariance_trace(surrogate: PairwiseGPSurrogate, fit: VirtualFit, x: Tensor) -> Tensor:
-    """``tr Sigma_11(x | D_b)`` of eq. (PairwiseGP_Jac_variance) for every batch element:
+def gradient_covariance_trace(surrogate: Surrogate, fit: VirtualFit, x: Tensor) -> Tensor:
+    """``tr Sigma_11(x | D_b)`` of eq. (15) "pairwise-GP Jacobian variance" for every batch element:
 
     ``tr(s Lambda) - ||M^{-1/2} D^{1/2} H k_1||_F^2`` with ``k_1 = grad_x K(x, [X; Z_b])``
     (Woodbury form of the module docstring). ``x`` is ``(d,)``; returns ``(B,)``.

@@ -1,4 +1,4 @@
-"""Issue 5 acceptance across the registry: every algorithm improves on a smooth 2-D and 6-D
+"""Across the registry: every algorithm improves on a smooth 2-D and 6-D
 problem under noise-free preferences, with the paper's budget 2 + 10 d (App. D.1)."""
 
 from __future__ import annotations

@@ -34,8 +34,8 @@ def _trace(s: PairwiseGPSurrogate, x: torch.Tensor) -> float:
     return float(torch.diagonal(s.gradient_covariance(x)).sum())
 
 
-def _brute(X, comps, centre, cand, opp, threshold=0.0, outputscale=OS) -> float:
-    """Eq. GI_PBO_acf_detailed by two independent full fits (fixed hyperparameters)."""
+def _brute(X, comps, center, cand, opp, threshold=0.0, outputscale=OS) -> float:
+    """Eq. (16) "GIPBO acquisition" by two independent full fits (fixed hyperparameters)."""
     base = PairwiseGPSurrogate.fit(X, comps, lengthscale=LS, outputscale=outputscale)
     p_x = float(base.preference_probability(cand, opp))
     n = X.shape[0]
@@ -47,9 +47,9 @@ def _brute(X, comps, centre, cand, opp, threshold=0.0, outputscale=OS) -> float:
         fit = PairwiseGPSurrogate.fit(
             Xe, torch.cat([comps, torch.tensor([duel])]), lengthscale=LS, outputscale=outputscale
         )
-        branches.append((prob, _trace(fit, centre)))
+        branches.append((prob, _trace(fit, center)))
     total = sum(p for p, _ in branches)
-    return _trace(base, centre) - sum(p / total * t for p, t in branches)
+    return _trace(base, center) - sum(p / total * t for p, t in branches)
 
 
 @pytest.mark.parametrize(
@@ -60,13 +60,13 @@ def test_acquisition_equals_brute_force(opponent: str, outputscale: float, n: in
     # from the chord phase to exact Newton in virtual_refit)
     X, comps = _data(n=n)
     s = PairwiseGPSurrogate.fit(X, comps, lengthscale=LS, outputscale=outputscale)
-    centre = X[4]
+    center = X[4]
     g = torch.Generator().manual_seed(1)
-    cands = (centre + 0.15 * torch.randn(6, 3, generator=g, dtype=torch.float64)).clamp(0, 1)
+    cands = (center + 0.15 * torch.randn(6, 3, generator=g, dtype=torch.float64)).clamp(0, 1)
     opp = X[4] if opponent == "data" else torch.tensor([0.6, 0.2, 0.5], dtype=torch.float64)
-    acq = gi_pbo_acquisition(s, centre, cands, opp)
+    acq = gi_pbo_acquisition(s, center, cands, opp)
     ref = torch.tensor(
-        [_brute(X, comps, centre, c, opp, outputscale=outputscale) for c in cands],
+        [_brute(X, comps, center, c, opp, outputscale=outputscale) for c in cands],
         dtype=torch.float64,
     )
     assert torch.allclose(acq, ref, atol=1e-7 * outputscale, rtol=0)
@@ -76,15 +76,15 @@ def test_acquisition_equals_brute_force(opponent: str, outputscale: float, n: in
 def test_likelihood_threshold_drops_unlikely_branch() -> None:
     X, comps = _data()
     s = PairwiseGPSurrogate.fit(X, comps, lengthscale=LS, outputscale=OS)
-    centre, opp = X[4], X[4]
-    cands = torch.stack([X[1] * 0.5 + centre * 0.5, torch.full((3,), 0.4, dtype=torch.float64)])
+    center, opp = X[4], X[4]
+    cands = torch.stack([X[1] * 0.5 + center * 0.5, torch.full((3,), 0.4, dtype=torch.float64)])
     probs = s.preference_probability(cands, opp.expand(2, 3))
     thr = float(torch.min(torch.minimum(probs, 1 - probs))) + 1e-3  # drops >= 1 branch
-    acq = gi_pbo_acquisition(s, centre, cands, opp, likelihood_threshold=thr)
-    ref = torch.tensor([_brute(X, comps, centre, c, opp, thr) for c in cands])
+    acq = gi_pbo_acquisition(s, center, cands, opp, likelihood_threshold=thr)
+    ref = torch.tensor([_brute(X, comps, center, c, opp, thr) for c in cands])
     assert torch.allclose(acq, ref.to(torch.float64), atol=1e-7, rtol=0)
     with pytest.raises(ValueError, match="likelihood_threshold"):
-        gi_pbo_acquisition(s, centre, cands, opp, likelihood_threshold=0.5)
+        gi_pbo_acquisition(s, center, cands, opp, likelihood_threshold=0.5)
 
 
 def test_virtual_refit_map_equals_full_fit() -> None:
@@ -114,13 +114,13 @@ def test_virtual_refit_map_equals_full_fit() -> None:
 def test_chosen_query_reduces_gradient_uncertainty_for_both_outcomes() -> None:
     X, comps = _data(seed=3)
     s = PairwiseGPSurrogate.fit(X, comps, lengthscale=LS, outputscale=OS)
-    centre = X[5]
+    center = X[5]
     cands = torch.tensor(
-        hypersphere_candidates(centre.numpy(), np.random.default_rng(0)), dtype=torch.float64
+        hypersphere_candidates(center.numpy(), np.random.default_rng(0)), dtype=torch.float64
     )
-    acq = gi_pbo_acquisition(s, centre, cands, centre)
+    acq = gi_pbo_acquisition(s, center, cands, center)
     best = cands[int(torch.argmax(acq))]
-    before = _trace(s, centre)
+    before = _trace(s, center)
     for duel in ([9, 5], [5, 9]):
         fit = PairwiseGPSurrogate.fit(
             torch.cat([X, best[None]]),
@@ -128,7 +128,7 @@ def test_chosen_query_reduces_gradient_uncertainty_for_both_outcomes() -> None:
             lengthscale=LS,
             outputscale=OS,
         )
-        assert _trace(fit, centre) < before
+        assert _trace(fit, center) < before
     assert float(acq.max()) > float(torch.median(acq[torch.isfinite(acq)]))
 
 
@@ -206,9 +206,9 @@ def _accounting(opt: GIPBO) -> tuple[int, int]:
         for c in ask.candidates:
             vals[c.id] = _quad2(c.theta)
         if len(ask.candidates) == 2 and not opt.in_initial_design:
-            centre, query = ask.candidates
-            # the new centre is evaluated now and is the opponent of the first local query
-            assert ask.duels == (type(ask.duels[0])(query.id, centre.id),)
+            center, query = ask.candidates
+            # the new center is evaluated now and is the opponent of the first local query
+            assert ask.duels == (type(ask.duels[0])(query.id, center.id),)
         comps += len(ask.duels)
         opt.tell(
             [
@@ -222,11 +222,11 @@ def _accounting(opt: GIPBO) -> tuple[int, int]:
 
 
 def test_budget_and_comparison_accounting() -> None:
-    # d = 2: 2 initial + 2 queries, then phases of 1 centre + 2 queries (App. D.1)
+    # d = 2: 2 initial + 2 queries, then phases of 1 center + 2 queries (App. D.1)
     opt = make_optimizer("gipbor", 2, seed=0, budget=22)
     comps, n = _accounting(opt)
     assert n == 22 and opt.gradient_steps == 6 and comps == n - 1 - opt.gradient_steps
-    # a step centre that would be the last evaluation is dueled against the incumbent
+    # a step center that would be the last evaluation is dueled against the incumbent
     opt = make_optimizer("gipbor", 2, seed=0, budget=8)
     comps, n = _accounting(opt)
     assert n == 8 and opt.gradient_steps == 2 and comps == n - opt.gradient_steps
@@ -253,6 +253,12 @@ def test_validation_names_the_field() -> None:
             make_optimizer("gipbo", 3, **kw)
     with pytest.raises(ValueError, match="likelihood_threshold"):
         make_optimizer("gipbor", 3, likelihood_threshold=0.1)  # not an option of GIPBOr
+
+
+def test_virtual_opponent_accepts_both_spellings_of_center() -> None:
+    for value in ("center", "centre"):
+        opt = make_optimizer("gipbo", 2, seed=3, budget=9, virtual_opponent=value)
+        assert isinstance(opt, GIPBO) and opt.virtual_opponent == "center"
 
 
 def test_virtual_refit_rejects_unsupported_fits() -> None:

@@ -1,4 +1,4 @@
-"""Ask/tell bookkeeping shared by every optimizer (DESIGN.md §3, paper App. D.1)."""
+"""Ask/tell bookkeeping shared by every optimizer (paper App. D.1)."""
 
 from __future__ import annotations
 

@@ -57,7 +57,7 @@ def test_newton_direction_on_concave_quadratic_is_exact() -> None:
     x = rng.random(4)
     g = H @ (x - x_star)  # gradient of 0.5 (x - x*)^T H (x - x*)
     assert np.allclose(negative_definite_modification(H), H)
-    assert np.allclose(x + newton_direction(g, H), x_star)  # eq. newton_direction
+    assert np.allclose(x + newton_direction(g, H), x_star)  # eq. (19) "Newton direction"
 
 
 def test_line_search_grid_and_projection() -> None:
@@ -74,10 +74,10 @@ def test_line_search_grid_and_projection() -> None:
 
 def test_ball_samples_inside_ball_and_cube() -> None:
     rng = np.random.default_rng(0)
-    for centre in (np.full(6, 0.5), np.zeros(6), np.array([1.0, 0.0, 0.98])):
-        pts = ball_samples(centre, 0.05, 40, rng)
-        assert pts.shape == (40, centre.size)
-        assert np.linalg.norm(pts - centre, axis=1).max() <= 0.05 + 1e-12
+    for center in (np.full(6, 0.5), np.zeros(6), np.array([1.0, 0.0, 0.98])):
+        pts = ball_samples(center, 0.05, 40, rng)
+        assert pts.shape == (40, center.size)
+        assert np.linalg.norm(pts - center, axis=1).max() <= 0.05 + 1e-12
         assert pts.min() >= 0 and pts.max() <= 1
     # uniform in the ball: the mean radius is d/(d+1) eps
     pts = ball_samples(np.full(3, 0.5), 0.05, 4000, rng)
@@ -107,17 +107,17 @@ def _run_with_record(opt: PrefSQP) -> list[tuple[int, int]]:
 def test_budget_and_comparison_accounting() -> None:
     opt = make_optimizer("prefsqp", 3, seed=0, budget=32)
     shapes = _run_with_record(opt)
-    # initial pair, first phase (3 samples vs the winner), then the new centre (if the line
+    # initial pair, first phase (3 samples vs the winner), then the new center (if the line
     # search moved) + 3 samples per phase
     assert shapes[:2] == [(2, 1), (3, 3)]
     assert all(s in ((4, 3), (3, 3)) for s in shapes[2:-1])
-    # a step centre that would be the last evaluation is dueled against the incumbent
-    final_centre = int(shapes[-1] == (1, 1))
-    assert sum(c == k + 1 for c, k in shapes[2:]) + final_centre == opt.gradient_steps
+    # a step center that would be the last evaluation is dueled against the incumbent
+    final_center = int(shapes[-1] == (1, 1))
+    assert sum(c == k + 1 for c, k in shapes[2:]) + final_center == opt.gradient_steps
     n = sum(c for c, _ in shapes)
     comps = sum(k for _, k in shapes)
     assert n == 32 and opt.gradient_steps >= 3
-    assert comps == n - 1 - opt.gradient_steps + final_centre
+    assert comps == n - 1 - opt.gradient_steps + final_center
     opt = make_optimizer("prefsqp", 3, seed=0, budget=5)  # initial pair + one phase
     assert _run_with_record(opt) == [(2, 1), (3, 3)]
 
@@ -128,7 +128,7 @@ def test_line_search_variants_choose_points_on_the_line(line_search: str) -> Non
     drive(opt, _quad)
     assert len(opt.directions) >= 3
     for t, p in enumerate(opt.directions):
-        x, nxt = opt.centres[t], opt.centres[t + 1]
+        x, nxt = opt.centers[t], opt.centers[t + 1]
         grid = line_search_points(x, p)
         if line_search == "full":
             assert np.allclose(nxt, grid[-1])
@@ -140,7 +140,7 @@ def test_eubo_line_search_picks_the_analytic_eubo_argmax() -> None:
     opt = make_optimizer("prefsqp", 2, seed=0, budget=12, line_search="eubo")
     drive(opt, _quad)
     surrogate = opt.surrogate
-    x, p = opt.centres[-2], opt.directions[-1]
+    x, p = opt.centers[-2], opt.directions[-1]
     grid = line_search_points(x, p)
     Xq = torch.tensor(np.vstack([x, grid]), dtype=torch.float64)
     mean, cov = surrogate.posterior_mean_cov(Xq)
@@ -158,7 +158,7 @@ def test_eubo_line_search_picks_the_analytic_eubo_argmax() -> None:
     ana = eubo_from_moments(mean, cov).numpy()
     assert np.allclose(ana, ref, atol=1e-6)
     # the iterate chosen in that phase maximises it (surrogate of the same data)
-    assert np.allclose(opt.centres[-1], grid[int(np.argmax(ana))])
+    assert np.allclose(opt.centers[-1], grid[int(np.argmax(ana))])
 
 
 @pytest.mark.parametrize(("dim", "budget", "seeds"), [(2, 22, range(5)), (6, 62, range(3))])

@@ -107,7 +107,7 @@ def _scripted(opt, wins):
             cand_first = d.first in new
             if cand_first:
                 outs.append(Outcome(d.first, d.second) if w else Outcome(d.second, d.first))
-            else:  # challenge duel centre vs global incumbent: the incumbent wins
+            else:  # challenge duel center vs global incumbent: the incumbent wins
                 outs.append(Outcome(d.second, d.first))
         opt.tell(outs)
         log.append((ask, opt.tr.length, opt.events[-1] if opt.events else None, center))
@@ -120,10 +120,10 @@ def test_turpbo_state_machine_driven_by_scripted_outcomes(fake_fit: None) -> Non
     log = _scripted(opt, [True, True] + [False] * 32)
     assert log[1][1] == 1.6 and log[1][2] is TREvent.EXPAND
     assert log[5][1] == 0.8 and log[5][2] is TREvent.SHRINK
-    # every iteration duels its candidate against the centre/incumbent
+    # every iteration duels its candidate against the center/incumbent
     inc_before = opt.incumbent.id
     assert all(a.duels[0].second == c for a, _, _, c in log)
-    # two successes moved the centre (= incumbent) to the second winner
+    # two successes moved the center (= incumbent) to the second winner
     assert log[2][3] == log[1][0].candidates[0].id == inc_before
     # from 1.6, seven halvings reach 0.0125; the eighth (0.00625 < 0.5**7) restarts
     events = [e for _, _, e, _ in log]
@@ -133,19 +133,19 @@ def test_turpbo_state_machine_driven_by_scripted_outcomes(fake_fit: None) -> Non
     assert len(ask.candidates) == 1 and ask.duels[0].second == inc_before
     opt.tell([Outcome(inc_before, ask.candidates[0].id)])  # incumbent keeps the crown
     assert opt.incumbent.id == inc_before and opt.center.id == ask.candidates[0].id
-    # next iteration: candidate vs new centre; the centre already lost against the king,
+    # next iteration: candidate vs new center; the center already lost against the king,
     # so no challenge duel yet
     ask = opt.ask()
     assert [(x.first, x.second) for x in ask.duels] == [(ask.candidates[0].id, opt.center.id)]
     cid = ask.candidates[0].id
     opt.tell([Outcome(cid, opt.center.id)])
     assert opt.center.id == cid and opt.incumbent.id == inc_before
-    # the new centre is challenged once against the global incumbent
+    # the new center is challenged once against the global incumbent
     ask = opt.ask()
     assert (cid, inc_before) in [(x.first, x.second) for x in ask.duels]
     new = ask.candidates[0].id
     opt.tell([Outcome(cid, inc_before), Outcome(new, cid)])
-    # the centre beat the king, then the candidate beat the centre: it is the new king
+    # the center beat the king, then the candidate beat the center: it is the new king
     assert opt.incumbent.id == new and opt.center.id == new
 
 

@@ -6,7 +6,6 @@ from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from localpbo_ros.driver import make_run_config
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.recorder_node import PARAMS as RECORDER_PARAMS
 from localpbo_ros.recorder_node import RecorderNode
@@ -28,6 +27,7 @@ from localpbo_msgs_py.topics import (
     TopicSpec,
 )
 
+from .configs import run_config
 from .conftest import SMALL_TASK
 
 RECORDER_DEFAULTS = {p.name: p.default for p in RECORDER_PARAMS}
@@ -70,7 +70,7 @@ def test_oracle_flood_counts_exactly_and_logs_once_per_reason(ros: Any, capfd: A
     oracle = ros.add(OracleNode(context=ros.ctx))
     clock = FrozenClock()
     oracle.warnings.clock = clock
-    config = make_run_config(
+    config = run_config(
         run_id="t1", algorithm="sobol", task="swimmer", seed=4, budget=8, task_options=SMALL_TASK
     )
     ros.publish(RUN_CONFIG, config.encode())

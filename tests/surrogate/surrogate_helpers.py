@@ -13,9 +13,9 @@ def loop_duels(d: int, n: int, seed: int, noise: float = 0.1, scale: float = 3.0
     outcomes from a smooth random utility plus Gaussian noise (all from ``seed``)."""
     g = torch.Generator().manual_seed(seed)
     X = torch.rand(n + 1, d, generator=g, dtype=torch.float64)
-    centre = torch.rand(d, generator=g, dtype=torch.float64)
+    center = torch.rand(d, generator=g, dtype=torch.float64)
     freq = torch.randn(d, generator=g, dtype=torch.float64)
-    y = scale * (-((X - centre) ** 2).sum(-1) + 0.3 * torch.sin(3.0 * X @ freq))
+    y = scale * (-((X - center) ** 2).sum(-1) + 0.3 * torch.sin(3.0 * X @ freq))
     y = y + noise * torch.randn(n + 1, generator=g, dtype=torch.float64)
     new = torch.arange(1, n + 1)
     old = (torch.rand(n, generator=g, dtype=torch.float64) * new).long()

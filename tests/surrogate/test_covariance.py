@@ -1,4 +1,4 @@
-"""Covariance blocks of eq. (general_covariance_block) vs independent computations: gpytorch's
+"""Covariance blocks of eq. (11) "general covariance block" vs independent computations: gpytorch's
 ``RBFKernelGrad`` joint prior of [f, grad f] with the Laplace formula and a dense inverse, and
 autograd of the kernel for the Hessian blocks."""
 

@@ -50,8 +50,9 @@ def test_paths_deterministic_and_differentiable(duels):
     torch.testing.assert_close(grad[0, 0], fd, rtol=1e-6, atol=1e-6)
 
 
-def _old_draw_sample_paths(surrogate, num_paths, generator, num_features):
-    """Verbatim copy of the formula before the analytic-gradient rewrite (the reference)."""
+def _reference_draw_sample_paths(surrogate, num_paths, generator, num_features):
+    """The pathwise formula of :mod:`localpbo_core.surrogate.sampling` written directly in
+    torch, without the numpy fast route (the reference)."""
     import math
 
     from localpbo_core.surrogate.kernel import se_kernel
@@ -85,16 +86,18 @@ def _old_draw_sample_paths(surrogate, num_paths, generator, num_features):
     return path
 
 
-def test_paths_equal_the_old_formula_for_a_fixed_generator(duels):
+def test_paths_equal_the_reference_formula_for_a_fixed_generator(duels):
     X, comp = duels(5, 40, seed=11)
     s = PairwiseGPSurrogate.fit(X, comp)
     x = torch.rand(50, 5, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     x = torch.cat([x, s.train_inputs[:5]])
     for num_paths, num_features in ((1, 1024), (3, 64)):
         new = s.sample_paths(num_paths, torch.Generator().manual_seed(7), num_features)
-        old = _old_draw_sample_paths(s, num_paths, torch.Generator().manual_seed(7), num_features)
+        ref_paths = _reference_draw_sample_paths(
+            s, num_paths, torch.Generator().manual_seed(7), num_features
+        )
         with torch.no_grad():
-            ref = old(x)
+            ref = ref_paths(x)
             torch.testing.assert_close(new(x), ref, rtol=0, atol=1e-12)
         np.testing.assert_allclose(new.values(x.numpy()), ref.numpy(), rtol=0, atol=1e-12)
         np.testing.assert_allclose(
