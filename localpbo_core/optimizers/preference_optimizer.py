@@ -24,12 +24,15 @@ from __future__ import annotations
 import abc
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, ValidationError, check_int, check_theta
+
+if TYPE_CHECKING:  # the protocol module imports torch; the base class does not need it
+    from localpbo_core.surrogate.protocol import Surrogate
 
 #: Tag mixed into the seed of the shared initial design; independent of the algorithm.
 INITIAL_DESIGN_TAG = 0x1D51
