@@ -15,7 +15,7 @@ packages += ["localpbo_sims"] + [f"localpbo_sims.{name}" for name in find_packag
 # The ROS nodes live in the colcon workspace (built there for `ros2 run`) and are also
 # importable from this install, so `localpbo run` and the tests use the very same code.
 ROS_PKG = "ros_ws/src/localpbo_ros/localpbo_ros"
-packages += ["localpbo_ros"]
+packages += ["localpbo_ros", "localpbo_ros.benchmarks"]
 
 setup(
     packages=packages,

@@ -30,9 +30,9 @@ def loop_data(d: int, n: int, seed: int) -> tuple[Tensor, Tensor]:
     """``n + 1`` duels on ``n + 2`` points in loop order (the last duel is the 'new' one)."""
     g = torch.Generator().manual_seed(seed)
     X = torch.rand(n + 2, d, generator=g, dtype=torch.float64)
-    centre = torch.rand(d, generator=g, dtype=torch.float64)
+    center = torch.rand(d, generator=g, dtype=torch.float64)
     freq = torch.randn(d, generator=g, dtype=torch.float64) / d**0.5
-    y = 4.0 * (-((X - centre) ** 2).sum(-1) / d**0.5 + 0.3 * torch.sin(3.0 * X @ freq))
+    y = 4.0 * (-((X - center) ** 2).sum(-1) / d**0.5 + 0.3 * torch.sin(3.0 * X @ freq))
     y = y + 0.1 * torch.randn(n + 2, generator=g, dtype=torch.float64)
     new = torch.arange(1, n + 2)
     old = (torch.rand(n + 1, generator=g, dtype=torch.float64) * new).long()

@@ -7,7 +7,7 @@ PACKAGE = "localpbo_ros"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=[PACKAGE],
+    packages=[PACKAGE, f"{PACKAGE}.benchmarks"],
     package_data={PACKAGE: ["localhost_only.xml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),

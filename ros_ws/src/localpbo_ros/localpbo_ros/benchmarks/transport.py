@@ -1,6 +1,6 @@
 """Benchmark: time per duel over ROS topics vs in-process, and recording cost per message.
 
-Run: ``python -m localpbo_ros.benchmark [--algorithm sobol] [--budget 60] [--seed 0]``.
+Run: ``python -m localpbo_ros.benchmarks.transport [--algorithm sobol] [--budget 60] [--seed 0]``.
 Prints figures; asserts nothing. For each task (``hartmann6``: a cheap function, so the
 transport cost is visible; ``swimmer``: the small MuJoCo task) the same optimizer, task and
 seed run three ways:

@@ -1,6 +1,6 @@
 """Speed and tunability figures of the linear-policy tasks (prints numbers, asserts nothing).
 
-Usage: ``python -m localpbo_sims.benchmark`` (add ``--quick`` for fewer repetitions).
+Usage: ``python -m localpbo_core.benchmarks.episode_compute`` (``--quick``: fewer repetitions).
 
 Prints, per task: steps/s of the lean runner and of gymnasium's env on the same policy and
 seed, seconds per full evaluation (one ``evaluate`` episode plus ``true_value``'s 5 episodes,
@@ -17,9 +17,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-
-from .ars import load_ars_policy
-from .tasks import LinearPolicyTask, make_task
+from localpbo_sims.ars import load_ars_policy
+from localpbo_sims.tasks import LinearPolicyTask, make_task
 
 
 def _gym_steps_per_second(task: LinearPolicyTask, weights: np.ndarray, seed: int) -> float:

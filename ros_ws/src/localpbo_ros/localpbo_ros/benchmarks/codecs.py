@@ -1,6 +1,6 @@
 """Benchmark: codec and recording cost per message (prints figures; asserts nothing).
 
-Run: ``PYTHONPATH=. python -m localpbo_msgs_py.bench [--n 2000] [--dim 16]``.
+Run: ``python -m localpbo_ros.benchmarks.codecs [--n 2000] [--dim 16]``.
 """
 
 from __future__ import annotations
