@@ -106,7 +106,8 @@ def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str,
     return per_alg
 
 
-def _json_object(text: str) -> dict[str, object]:
+def json_object(text: str) -> dict[str, object]:
+    """An argparse type: a JSON object given on the command line."""
     try:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -173,7 +174,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument(
         "--problem-options",
-        type=_json_object,
+        type=json_object,
         default={},
         metavar="JSON",
         help="problem options as a JSON object, e.g. '{\"episode_steps\": 200}'",

@@ -15,6 +15,8 @@ import psutil
 import pytest
 from localpbo_ros import dds
 
+from .processes import wait_ready
+
 DDS_VARIABLES = (
     "ROS_AUTOMATIC_DISCOVERY_RANGE",
     "ROS_LOCALHOST_ONLY",
@@ -38,13 +40,7 @@ def node_process(extra_env: dict[str, str]) -> Iterator[psutil.Process]:
         text=True,
     )
     try:
-        assert proc.stdout is not None
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if " ready" in line:
-                break
-        assert any(" ready" in line for line in lines), "".join(lines)
+        wait_ready(proc)
         time.sleep(2.0)  # let discovery announce (and open every socket it will open)
         yield psutil.Process(proc.pid)
         proc.send_signal(signal.SIGINT)

@@ -14,6 +14,8 @@ import pytest
 
 from localpbo_msgs_py.bag import summarize
 
+from .processes import wait_ready
+
 
 @pytest.mark.parametrize(
     ("module", "second", "gap_s"),
@@ -37,13 +39,7 @@ def test_second_signal_still_stops_cleanly(
         cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     try:
-        assert proc.stdout is not None
-        lines = []
-        for line in proc.stdout:
-            lines.append(line)
-            if " ready" in line:
-                break
-        assert any(" ready" in line for line in lines), "".join(lines)
+        lines = wait_ready(proc)
         proc.send_signal(signal.SIGINT)
         time.sleep(gap_s)
         proc.send_signal(second)

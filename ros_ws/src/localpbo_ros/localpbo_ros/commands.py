@@ -9,13 +9,13 @@ bench --help`` stays free of rclpy); each command imports what it needs when it 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from localpbo_core.cli import json_object
 from localpbo_core.settings import (
     DEFAULT_ALGORITHM,
     DEFAULT_INITIAL_DESIGN,
@@ -27,12 +27,8 @@ EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
 
 
 def _json_object(text: str) -> str:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError("must be a JSON object, e.g. '{\"batch_size\": 2}'")
+    """A JSON object given on the command line, kept as text (node parameters are text)."""
+    json_object(text)
     return text
 
 
