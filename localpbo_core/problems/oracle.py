@@ -39,7 +39,7 @@ class Comparison(NamedTuple):
 
 
 class PreferenceOracle:
-    """Noisy pairwise comparisons of problem values (paper eq. noise / eq. pi).
+    """Noisy pairwise comparisons of problem values (paper Sec. 2, eqs. (2)-(3)).
 
     Args:
         problem: supplies ``value_range`` (and ``evaluate`` for ``duel``).
@@ -59,13 +59,13 @@ class PreferenceOracle:
         self.comparisons = 0
 
     def noisy_pair(self, value_a: float, value_b: float) -> tuple[float, float]:
-        """The noisy observations ``(y_a, y_b)`` of eq. noise (advances the generator)."""
+        """The noisy observations ``(y_a, y_b)`` of paper eq. (2) (advances the generator)."""
         pair = _noisy_pair(self.noise_std, self._rng, value_a, value_b)
         self.comparisons += 1
         return pair
 
     def compare(self, value_a: float, value_b: float) -> bool:
-        """True if a wins: ``y_a > y_b`` under the noise of eq. noise (eq. pi)."""
+        """True if a wins: ``y_a > y_b`` under the noise of paper eq. (2) (eq. (3))."""
         y_a, y_b = self.noisy_pair(value_a, value_b)
         return bool(y_a > y_b)
 

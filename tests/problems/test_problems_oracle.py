@@ -1,4 +1,4 @@
-"""The noisy preference oracle (paper eq. noise / eq. pi)."""
+"""The noisy preference oracle (paper Sec. 2, eqs. (2)-(3): observation noise and preference)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def test_noise_std_matches(hartmann) -> None:
 
 
 def test_win_probability_matches_probit(hartmann) -> None:
-    """P(a wins) = Phi((f_a - f_b) / (sqrt(2) sigma)) under eq. noise / eq. pi."""
+    """P(a wins) = Phi((f_a - f_b) / (sqrt(2) sigma)) under paper eqs. (2)-(3)."""
     oracle = PreferenceOracle(hartmann, noise_fraction=0.1, seed=1)
     diff = 0.5 * oracle.noise_std
     n = 20_000
@@ -51,7 +51,7 @@ def test_noise_free_oracle_picks_larger(hartmann) -> None:
     oracle = PreferenceOracle(hartmann, noise_fraction=0.0, seed=0)
     values = np.random.default_rng(2).normal(size=(500, 2))
     assert [oracle.compare(x, y) for x, y in values] == [bool(x > y) for x, y in values]
-    assert oracle.compare(1.0, 1.0) is False  # eq. pi: ties go to the second input
+    assert oracle.compare(1.0, 1.0) is False  # paper eq. (3): ties go to the second input
 
 
 def test_duel_evaluates_both(hartmann) -> None:

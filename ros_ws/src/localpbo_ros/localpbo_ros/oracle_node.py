@@ -1,4 +1,4 @@
-"""``oracle_node``: answers duel requests from episode returns (paper Sec. 3, eq. noise/pi).
+"""``oracle_node``: answers duel requests from episode returns (paper Sec. 2, eqs. (2)-(3)).
 
 Subscribes ``/localpbo/run_config``, ``/localpbo/episode_result``, ``/localpbo/duel_request``;
 publishes ``/localpbo/duel_outcome`` and ``/localpbo/status``. Results and duels are matched by
