@@ -22,6 +22,7 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.logging import LoggingSeverity
 
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
@@ -99,6 +100,8 @@ def run_suite(
         except ParameterError:
             refused = True
             raise
+        # the command shows its own progress bar and summary: the node logs warnings only
+        opt.get_logger().set_level(LoggingSeverity.WARN)
         nodes.append(opt)
         executor.add_node(opt)
         budget = opt.driver.session.budget
