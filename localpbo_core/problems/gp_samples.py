@@ -26,7 +26,8 @@ Monte Carlo error, and a KS test of the whitened values of single paths).
 **Noise scale.** ``value_range`` is defined as for the other problems: max − min of the
 function over the first :data:`VALUE_RANGE_POINTS` = 10,000 points of
 ``scipy.stats.qmc.Sobol(d, scramble=True, seed=0)``; it is computed when the problem is built
-(a few seconds at d = 96, cached per process) rather than stored, since every
+on first use (about two seconds at d = 96; the problem is cached per process) rather than
+stored, since every
 (d, l, instance) is a different function.
 
 The box is [0,1]^d itself: ``to_native`` is the identity and ``evaluate_native(x)`` evaluates
@@ -38,7 +39,6 @@ from __future__ import annotations
 
 import functools
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -66,25 +66,37 @@ def _lengthscale_bits(lengthscale: float) -> int:
     return int(np.array(lengthscale, dtype=np.float64).view(np.uint64))
 
 
-@dataclass(frozen=True)
 class GPSampleProblem:
     """One GP sample path on [0,1]^d (module docstring).
 
-    Build with :func:`make_gp_sample` (validated, cached). Attributes ``omega`` (F, d),
-    ``phase`` (F,) and ``weights`` (F,) hold the drawn features (``weights`` already scaled by
-    ``sqrt(2 s / F)``).
+    Build with :func:`make_gp_sample` (validated, cached per process). Attributes ``omega``
+    (F, d), ``phase`` (F,) and ``weights`` (F,) hold the drawn features (``weights`` already
+    scaled by ``sqrt(2 s / F)``); ``value_range`` is computed on first use.
     """
 
-    dim: int
-    lengthscale: float
-    instance: int
-    num_features: int
-    omega: np.ndarray = field(repr=False)
-    phase: np.ndarray = field(repr=False)
-    weights: np.ndarray = field(repr=False)
-    value_range: float = 0.0
-
     name = GP_SAMPLE_PROBLEM
+
+    def __init__(self, dim: int, lengthscale: float, instance: int, num_features: int) -> None:
+        self.dim = dim
+        self.lengthscale = lengthscale
+        self.instance = instance
+        self.num_features = num_features
+        self.omega, self.phase, self.weights = draw_features(
+            dim, lengthscale, instance, num_features
+        )
+        for arr in (self.omega, self.phase, self.weights):
+            arr.setflags(write=False)
+
+    def __repr__(self) -> str:
+        return (
+            f"GPSampleProblem(dim={self.dim}, lengthscale={self.lengthscale}, "
+            f"instance={self.instance}, num_features={self.num_features})"
+        )
+
+    @functools.cached_property
+    def value_range(self) -> float:
+        """max − min over the first 10,000 scrambled Sobol points (module docstring)."""
+        return sobol_value_range(self)
 
     @property
     def hyperparameters(self) -> dict[str, float]:
@@ -152,20 +164,7 @@ def sobol_value_range(problem: GPSampleProblem, points: int = VALUE_RANGE_POINTS
 
 @functools.lru_cache(maxsize=32)
 def _build(dim: int, lengthscale: float, instance: int, num_features: int) -> GPSampleProblem:
-    omega, phase, weights = draw_features(dim, lengthscale, instance, num_features)
-    for arr in (omega, phase, weights):
-        arr.setflags(write=False)
-    problem = GPSampleProblem(dim, lengthscale, instance, num_features, omega, phase, weights)
-    return GPSampleProblem(
-        dim,
-        lengthscale,
-        instance,
-        num_features,
-        omega,
-        phase,
-        weights,
-        value_range=sobol_value_range(problem),
-    )
+    return GPSampleProblem(dim, lengthscale, instance, num_features)
 
 
 def make_gp_sample(
