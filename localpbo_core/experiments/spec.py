@@ -356,7 +356,7 @@ def _resolve(
         if key not in merged:
             continue
         value = merged[key]
-        if isinstance(value, str):
+        if isinstance(value, str) and key in ("initial_design", "budget"):
             match = _PER_DIM.match(value)
             assert match is not None  # checked by _settings
             value = int(match.group(1)) * dims[f"{p.label}/{seed}"] + int(match.group(2) or 0)
