@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import logging
 import os
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -126,15 +127,19 @@ def select_runs(
     Raises:
         SettingError: a filter names a label or seed the spec does not have.
     """
-    known = {
+    known: dict[str, list[Any]] = {
         "--problems": [p.label for p in spec.problems],
         "--algorithms": [a.label for a in spec.algorithms],
         "--variants": [v.label for v in spec.variants],
         "--seeds": list(spec.seeds),
     }
-    chosen = {"--problems": problems, "--algorithms": algorithms, "--variants": variants}
-    chosen_seeds = seeds
-    for flag, values in [*chosen.items(), ("--seeds", chosen_seeds)]:
+    chosen: dict[str, Sequence[Any] | None] = {
+        "--problems": problems,
+        "--algorithms": algorithms,
+        "--variants": variants,
+        "--seeds": seeds,
+    }
+    for flag, values in chosen.items():
         for v in values or ():
             if v not in known[flag]:
                 raise SettingError(
@@ -233,7 +238,7 @@ def _run_on_ray(
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address is None:
             kwargs["num_cpus"] = workers or os.cpu_count() or 1
-        ray.init(address=address, logging_level="ERROR", **kwargs)
+        ray.init(address=address, logging_level=logging.ERROR, **kwargs)
         started = True
     try:
         task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
