@@ -1,5 +1,6 @@
-"""The ``localpbo`` command: ``bench`` and ``demo`` here; ``run``, ``replay`` and ``bag-info``
-from the ROS node package.
+"""The ``localpbo`` command: ``bench``, ``demo``, ``sweep`` (:mod:`localpbo_core.sweep`) and
+``report`` (:mod:`localpbo_core.report`) here; ``run``, ``replay`` and ``bag-info`` from the ROS
+node package.
 
 ``bench`` drives one :class:`~localpbo_core.session.Session` per (algorithm, seed) in-process
 (:func:`localpbo_core.loop.run_session`) and writes ``results.csv`` (one row per evaluation,
@@ -193,8 +194,52 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="localpbo_demo", help="output directory")
     demo.add_argument("--seed", type=int, default=0, help="run seed")
     _add_threads(demo)
+    _add_sweep_commands(sub)
     _add_ros_commands(sub)
     return parser
+
+
+def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
+    """``sweep`` (:mod:`localpbo_core.sweep`) and ``report`` (:mod:`localpbo_core.report`)."""
+    sweep = sub.add_parser(
+        "sweep",
+        help="run an experiment spec (problems x algorithms x seeds) on Ray, resumable",
+        description=(
+            "Run every run of SPEC (a YAML file or the name of a bundled spec, e.g. synthetic, "
+            "gp_within, tiny) as a Ray task and store each finished run as "
+            "OUT/runs/<run_id>.json.gz; runs already stored are skipped, so an interrupted "
+            "sweep continues where it stopped."
+        ),
+    )
+    sweep.add_argument("spec", help="spec file or bundled spec name")
+    sweep.add_argument("--out", required=True, help="output folder (created if needed)")
+    sweep.add_argument("--address", default=None, help="existing Ray cluster (default: local)")
+    sweep.add_argument(
+        "--workers", type=int, default=None, help="CPUs of the local Ray (default: all cores)"
+    )
+    sweep.add_argument(
+        "--in-process", action="store_true", help="run sequentially in this process, no Ray"
+    )
+    sweep.add_argument("--max-runs", type=int, default=None, help="run at most N unfinished runs")
+    sweep.add_argument("--problems", default=None, help="comma-separated problem labels")
+    sweep.add_argument("--algorithms", default=None, help="comma-separated algorithm labels")
+    sweep.add_argument("--variants", default=None, help="comma-separated variant labels")
+    sweep.add_argument("--seeds", default=None, help="seeds or ranges, e.g. 0-4")
+    sweep.add_argument("--dry-run", action="store_true", help="list the runs and their state")
+    sweep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    report = sub.add_parser(
+        "report",
+        help="figures and tables (with paired Wilcoxon tests) from stored runs",
+        description=(
+            "Read stored runs (sweep or bench output folders, or run files) and write "
+            "Markdown tables and PNG figures into OUT (byte-identical on the same input)."
+        ),
+    )
+    report.add_argument("results", nargs="+", help="result folders or run files")
+    report.add_argument("--out", required=True, help="output folder (created if needed)")
+    report.add_argument(
+        "--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)"
+    )
 
 
 def _add_ros_commands(sub: argparse._SubParsersAction) -> None:
@@ -283,22 +328,12 @@ def run_file_name(settings: RunSettings) -> str:
     return f"{settings.problem}_{settings.algorithm}_seed{settings.seed}.json"
 
 
-def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
-    """One run as JSON: its settings, every candidate (native units and value), every
-    accepted answer and every evaluation record. Floats are written exactly (JSON's
-    shortest round-trip representation)."""
-    doc: dict[str, Any] = {
+def trace_document(settings: RunSettings, trace: RunTrace) -> dict[str, Any]:
+    """One run as a JSON-ready document (schema ``localpbo/run/v1``): its settings, every
+    candidate (native units and value), every accepted answer and every evaluation record."""
+    return {
         "schema": "localpbo/run/v1",
-        "settings": {
-            "algorithm": settings.algorithm,
-            "problem": settings.problem,
-            "seed": settings.seed,
-            "budget": settings.budget,
-            "initial_design": settings.initial_design,
-            "noise_fraction": settings.noise_fraction,
-            "optimizer_options": dict(settings.optimizer_options),
-            "problem_options": dict(settings.problem_options),
-        },
+        "settings": settings_document(settings),
         "candidates": [
             {"id": cid, "native": list(trace.native[cid]), "value": trace.values[cid]}
             for cid in sorted(trace.native)
@@ -309,7 +344,27 @@ def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
         ],
         "records": [dict(zip(RESULT_COLUMNS, r.as_row(), strict=True)) for r in trace.records],
     }
-    path.write_text(json.dumps(doc, default=str) + "\n")
+
+
+def settings_document(settings: RunSettings) -> dict[str, Any]:
+    """The fields of ``settings`` as stored with a run (JSON types: tuples become lists)."""
+    doc = {
+        "algorithm": settings.algorithm,
+        "problem": settings.problem,
+        "seed": settings.seed,
+        "budget": settings.budget,
+        "initial_design": settings.initial_design,
+        "noise_fraction": settings.noise_fraction,
+        "optimizer_options": dict(settings.optimizer_options),
+        "problem_options": dict(settings.problem_options),
+    }
+    return dict(json.loads(json.dumps(doc, default=str)))
+
+
+def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
+    """One run as JSON (:func:`trace_document`). Floats are written exactly (JSON's
+    shortest round-trip representation)."""
+    path.write_text(json.dumps(trace_document(settings, trace), default=str) + "\n")
 
 
 def write_results(records: Sequence[EvaluationRecord], path: Path) -> None:
@@ -415,6 +470,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         use_fast_threads()
     if hasattr(args, "func"):  # a command contributed by the ROS package
         return int(args.func(args))
+    if args.command in ("sweep", "report"):
+        try:
+            if args.command == "sweep":
+                from localpbo_core.sweep import main_sweep
+
+                return main_sweep(args)
+            from localpbo_core.report import main_report
+
+            return main_report(args)
+        except SettingError as exc:
+            parser.exit(2, f"localpbo: error: {exc.field}: {exc.reason}\n")
+        except ValueError as exc:
+            parser.exit(2, f"localpbo: error: {exc}\n")
     try:
         if args.torch_threads is not None:
             if args.torch_threads < 1:

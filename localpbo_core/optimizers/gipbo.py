@@ -31,7 +31,7 @@ Decisions not fixed by the paper:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -85,6 +85,9 @@ class GIPBO(LocalPhaseOptimizer):
         likelihood_threshold: virtual preference likelihood threshold (table: 0.1).
         virtual_opponent: ``"incumbent"`` (default) or ``"center"`` (see the module docstring;
             the spelling ``"centre"`` is accepted too).
+        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
+            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 
     name = "gipbo"
@@ -106,8 +109,16 @@ class GIPBO(LocalPhaseOptimizer):
         max_candidates: int = 512,
         likelihood_threshold: float = 0.1,
         virtual_opponent: str = "incumbent",
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            hyperparameters=hyperparameters,
+        )
         self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
         self.min_step = check_float("min_step", min_step, minimum=0.0)
         self.num_local_queries = (
@@ -214,7 +225,8 @@ class GIPBO(LocalPhaseOptimizer):
 
 class GIPBOr(GIPBO):
     """GIPBOr (App. C.3): GIPBO with random local queries (uniform direction, radius uniform
-    in ``search_bounds``, projected onto ``[0,1]^d``); one GP fit per gradient step."""
+    in ``search_bounds``, projected onto ``[0,1]^d``); one GP fit per gradient step. Options as
+    GIPBO's, without those of the acquisition."""
 
     name = "gipbor"
     _random_queries = True
@@ -230,6 +242,7 @@ class GIPBOr(GIPBO):
         min_step: float = 0.05,
         num_local_queries: int | None = None,
         search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
         super().__init__(
             dim,
@@ -241,4 +254,5 @@ class GIPBOr(GIPBO):
             min_step=min_step,
             num_local_queries=num_local_queries,
             search_bounds=search_bounds,
+            hyperparameters=hyperparameters,
         )

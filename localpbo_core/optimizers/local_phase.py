@@ -21,14 +21,14 @@ the latest winner of the phase's duel chain.
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
-import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
-from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
+from localpbo_core.surrogate import Surrogate
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
 
 
@@ -47,8 +47,10 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         budget: int,
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        self._refitter = SurrogateRefitter(1, check_hyperparameters(hyperparameters, self.dim))
         self._center_id: int | None = None
         self._center_theta: np.ndarray | None = None
         self._center_pending = False  # a step center not evaluated yet
@@ -81,15 +83,14 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
 
     def _fit(self) -> Surrogate:
         """Refit the pairwise GP on all duels, hyperparameters learned (warm-started from the
-        previous fit). Reuses the previous fit when no candidate or duel was added."""
+        previous fit) unless fixed by the ``hyperparameters`` option
+        (:mod:`.surrogate_refit`). Reuses the previous fit when no candidate or duel was
+        added."""
         key = (len(self._candidates), len(self._outcomes))
         if self._surrogate is not None and key == self._fit_key:
             return self._surrogate
         self._fit_key = key
-        X = torch.tensor(self.train_inputs(), dtype=torch.float64)
-        comps = torch.tensor(self.comparisons(), dtype=torch.long)
-        prev = self._surrogate
-        fitted = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)
+        fitted = self._refitter.refit(self.train_inputs(), self.comparisons())
         self._surrogate = fitted
         return fitted
 

@@ -22,7 +22,7 @@ are kept as ascent directions, never dropped); the incumbent after a phase is th
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -95,6 +95,9 @@ class PrefSQP(LocalPhaseOptimizer):
         line_search_resolution: grid size R (table: 100).
         num_features: random features of the Thompson sample path.
         eigenvalue_floor: relative floor of the eigenvalue modification.
+        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
+            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 
     name = "prefsqp"
@@ -112,8 +115,16 @@ class PrefSQP(LocalPhaseOptimizer):
         line_search_resolution: int = 100,
         num_features: int = 1024,
         eigenvalue_floor: float = 1e-6,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            hyperparameters=hyperparameters,
+        )
         self.epsilon = check_float("epsilon", epsilon, minimum=0.0, minimum_open=True)
         self.num_local_samples = (
             self.dim

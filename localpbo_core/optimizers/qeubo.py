@@ -31,7 +31,7 @@ selection of initial conditions that BoTorch draws from torch's global RNG.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -47,7 +47,7 @@ from botorch.utils.sampling import manual_seed
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, check_int
 
@@ -65,6 +65,9 @@ class QEUBO(PreferenceOptimizer):
             hyperparameters at every iteration. With k > 1 they are learned at every k-th
             iteration only and held in between (the Laplace MAP is still refit on all data
             every iteration). A speed option, not the paper's (same as TuRPBO's).
+        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
+            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 
     name = "qeubo"
@@ -81,6 +84,7 @@ class QEUBO(PreferenceOptimizer):
         num_raw_samples: int = 1024,
         num_mc_samples: int = 256,
         hyperparameter_refit_every: int = 1,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
         self.batch_size = check_int("batch_size", batch_size)
@@ -92,7 +96,9 @@ class QEUBO(PreferenceOptimizer):
         )
         if self.num_restarts > self.num_raw_samples:
             raise SettingError("num_restarts", "must not exceed num_raw_samples")
-        self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
+        self._refitter = SurrogateRefitter(
+            self.hyperparameter_refit_every, check_hyperparameters(hyperparameters, self.dim)
+        )
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
         self._next_duels: list[Duel] = []

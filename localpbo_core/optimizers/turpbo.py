@@ -23,7 +23,7 @@ Decisions not fixed by the paper (documented here, in the README and the report)
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -31,7 +31,7 @@ import torch
 from localpbo_core.optimizers.acquisition import eubo_batch, thompson_batch
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.optimizers.trust_region import (
     TREvent,
     TrustRegionState,
@@ -59,6 +59,9 @@ class TuRPBO(PreferenceOptimizer):
             hyperparameters at every iteration. With k > 1 they are learned at every k-th
             iteration only and held at the last learned values in between (the Laplace MAP
             is still refit on all data every iteration). A speed option, not the paper's.
+        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
+            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 
     name = "turpbo"
@@ -77,6 +80,7 @@ class TuRPBO(PreferenceOptimizer):
         num_features: int = 1024,
         num_mc_samples: int = 512,
         hyperparameter_refit_every: int = 1,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
         super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
         self.batch_size = check_int("batch_size", batch_size)
@@ -95,7 +99,9 @@ class TuRPBO(PreferenceOptimizer):
         self._center_challenged = True  # center known to be the global incumbent
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
-        self._refitter = SurrogateRefitter(self.hyperparameter_refit_every)
+        self._refitter = SurrogateRefitter(
+            self.hyperparameter_refit_every, check_hyperparameters(hyperparameters, self.dim)
+        )
         self.events: list[TREvent] = []
 
     # ------------------------------------------------------------------ state

@@ -1,6 +1,8 @@
 """Problem registry: ``make_problem(name, **options)`` and ``available_problems()``.
 
-Synthetic functions live in ``localpbo_core.problems.synthetic``; the MuJoCo linear-policy
+Synthetic functions live in ``localpbo_core.problems.synthetic``, GP sample paths
+(``gp_sample``, options ``dim``, ``lengthscale``, ``instance``, ``num_features``; paper
+App. D.4) in ``localpbo_core.problems.gp_samples``; the MuJoCo linear-policy
 tasks (``hopper``, ``walker2d``, ``swimmer``) come from ``localpbo_sims`` and are imported
 lazily, so ``localpbo_core`` works without mujoco/gymnasium installed.
 """
@@ -12,6 +14,7 @@ from typing import Any
 from localpbo_core.validation import SettingError
 
 from .base import Problem
+from .gp_samples import GP_SAMPLE_PROBLEM, make_gp_sample
 from .synthetic import SYNTHETIC_PROBLEMS, make_synthetic
 
 MUJOCO_PROBLEMS: tuple[str, ...] = ("hopper", "swimmer", "walker2d")
@@ -20,15 +23,16 @@ MUJOCO_PROBLEMS: tuple[str, ...] = ("hopper", "swimmer", "walker2d")
 
 def available_problems() -> list[str]:
     """Every registered problem name, sorted."""
-    return sorted((*SYNTHETIC_PROBLEMS, *MUJOCO_PROBLEMS))
+    return sorted((*SYNTHETIC_PROBLEMS, GP_SAMPLE_PROBLEM, *MUJOCO_PROBLEMS))
 
 
 def make_problem(name: str, **options: Any) -> Problem:
     """Create a problem by name.
 
-    Synthetic problems take no options. MuJoCo tasks accept the keyword options of
-    ``localpbo_sims.LinearPolicyTask`` (``alive_bonus``, ``weight_low``, ``weight_high``,
-    ``episode_steps``, ``cache_size``, ``value_range``).
+    Synthetic problems take no options. ``gp_sample`` takes ``dim`` and ``lengthscale``
+    (required), ``instance`` (default 0) and ``num_features`` (default 4096). MuJoCo tasks
+    accept the keyword options of ``localpbo_sims.LinearPolicyTask`` (``alive_bonus``,
+    ``weight_low``, ``weight_high``, ``episode_steps``, ``cache_size``, ``value_range``).
 
     Raises:
         ValueError: unknown name (the message lists the valid ones) or unknown option.
@@ -39,6 +43,15 @@ def make_problem(name: str, **options: Any) -> Problem:
         if options:
             raise SettingError(sorted(options)[0], f"{name} takes no options")
         return make_synthetic(name)
+    if name == GP_SAMPLE_PROBLEM:
+        allowed_gp = ("dim", "lengthscale", "instance", "num_features")
+        unknown_gp = sorted(set(options) - set(allowed_gp))
+        if unknown_gp:
+            raise SettingError(unknown_gp[0], f"unknown option for {name}; valid: {allowed_gp}")
+        for required in ("dim", "lengthscale"):
+            if required not in options:
+                raise SettingError(required, f"{name} needs this option")
+        return make_gp_sample(**options)
     try:
         import localpbo_sims
     except ImportError as exc:  # pragma: no cover - depends on the installation

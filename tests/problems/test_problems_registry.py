@@ -13,6 +13,7 @@ from localpbo_core.problems import Problem, available_problems, make_problem
 
 def test_available_problems() -> None:
     assert available_problems() == [
+        "gp_sample",
         "hartmann6",
         "hopper",
         "levy32",

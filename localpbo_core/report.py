@@ -1,0 +1,393 @@
+"""``localpbo report RESULTS... --out DIR``: the paper's figures and tables from stored runs
+(paper Sec. 6, App. D.1 metrics, App. E compute).
+
+Input: sweep folders (``runs/*.json.gz``), ``localpbo bench`` folders (``runs/*.json``) or run
+files. Runs are grouped by (spec, problem label, variant); within a group each algorithm
+label is one row. Output in ``OUT``:
+
+* ``report.md``: per group, final best-seen and final cumulative (App. D.1 metrics on true
+  values) as mean ± sample std over seeds. For each metric the algorithm with the highest
+  mean is the best (**bold**); it is compared with every other algorithm by a two-sided
+  **paired Wilcoxon signed-rank test** (pairs = runs with the same seed; scipy's
+  ``wilcoxon``, exact for small samples), the p-values of a group and metric are
+  **Holm-corrected** (:func:`holm`), and algorithms not significantly different from the best
+  (adjusted p >= ``alpha``) are underlined (``<u>…</u>``). Then the compute table: optimizer
+  seconds per run (mean ± std) next to the paper's App. E figure (:data:`PAPER_SECONDS`,
+  empty where the paper's number is not known here) and the ratio paper / ours (only for runs
+  at the default budget with default options, the configuration the paper timed).
+* ``curves__<spec>__<problem>[__<variant>].png``: best-seen and cumulative against the
+  evaluation, mean ± std over seeds (shaded), one line per algorithm.
+* ``gp_summary.png`` (if GP sample-path runs are present): final best-seen against d, one
+  panel per lengthscale and per within-model / out-of-model.
+
+Deterministic: groups, rows and keys are sorted, floats have fixed formats, PNGs are written
+without the software/date metadata, so the same input gives byte-identical files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from localpbo_core.settings import SettingError
+
+PAPER_SECONDS: dict[tuple[str, str], float] = {
+    ("hartmann6", "sobol"): 0.023,
+    ("hartmann6", "glisp"): 9.0,
+    ("hartmann6", "qeubo"): 33.0,
+    ("hartmann6", "gipbo"): 245.0,
+    ("hartmann6", "gipbor"): 2.6,
+    ("hartmann6", "turpbo"): 46.0,
+    ("hartmann6", "prefsqp"): 22.0,
+    ("rosenbrock16", "sobol"): 0.059,
+    ("rosenbrock16", "glisp"): 7.5,
+    ("rosenbrock16", "qeubo"): 171.0,
+    ("rosenbrock16", "gipbo"): 2453.0,
+    ("rosenbrock16", "gipbor"): 4.8,
+    ("rosenbrock16", "turpbo"): 143.0,
+    ("rosenbrock16", "prefsqp"): 66.0,
+    ("hopper", "turpbo"): 489.0,
+}
+"""Paper App. E: optimizer seconds per run at the paper's budget, (problem, algorithm)."""
+
+
+@dataclass(frozen=True)
+class StoredRun:
+    """The parts of a stored run the report uses."""
+
+    spec: str
+    problem_label: str
+    algorithm_label: str
+    variant: str
+    seed: int
+    within_model: bool
+    settings: dict[str, Any]
+    best_seen: np.ndarray
+    cumulative: np.ndarray
+    optimizer_seconds: float
+
+
+def holm(pvalues: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values (same order as the input)."""
+    m = len(pvalues)
+    order = sorted(range(m), key=lambda i: (pvalues[i], i))
+    adjusted = [0.0] * m
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (m - rank) * pvalues[i]))
+        adjusted[i] = running
+    return adjusted
+
+
+def paired_wilcoxon(x: Sequence[float], y: Sequence[float]) -> float:
+    """Two-sided Wilcoxon signed-rank p-value of paired samples (1.0 if all pairs are equal
+    or there are no pairs)."""
+    from scipy.stats import wilcoxon
+
+    a, b = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if a.size == 0 or np.all(a == b):
+        return 1.0
+    return float(wilcoxon(a, b, alternative="two-sided").pvalue)
+
+
+# ---------------------------------------------------------------------- loading
+def run_files(paths: Iterable[str | Path]) -> list[Path]:
+    """Every run file under ``paths`` (folders searched for ``runs/*.json[.gz]``), sorted."""
+    found: set[Path] = set()
+    for p in map(Path, paths):
+        if p.is_dir():
+            for pattern in ("*.json.gz", "*.json"):
+                found.update(q for q in p.rglob(pattern) if q.parent.name == "runs")
+        elif p.is_file():
+            found.add(p)
+        else:
+            raise SettingError("results", f"{p} does not exist")
+    return sorted(found)
+
+
+def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
+    """Read every run under ``paths`` (:func:`run_files`)."""
+    from localpbo_core.sweep import read_run
+
+    runs = []
+    for path in run_files(paths):
+        doc = read_run(path)
+        s = doc["settings"]
+        meta = doc.get("run") or {
+            "spec": "bench",
+            "problem_label": s["problem"],
+            "algorithm_label": s["algorithm"],
+            "variant": "",
+            "within_model": False,
+        }
+        records = doc["records"]
+        runs.append(
+            StoredRun(
+                spec=meta["spec"],
+                problem_label=meta["problem_label"],
+                algorithm_label=meta["algorithm_label"],
+                variant=meta["variant"],
+                seed=int(s["seed"]),
+                within_model=bool(meta["within_model"]),
+                settings=s,
+                best_seen=np.array([r["best_seen"] for r in records], dtype=np.float64),
+                cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
+                optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
+            )
+        )
+    if not runs:
+        raise SettingError("results", "no stored runs found")
+    keys = [(r.spec, r.problem_label, r.algorithm_label, r.variant, r.seed) for r in runs]
+    if len(set(keys)) != len(keys):
+        raise SettingError("results", "the same run appears twice in the inputs")
+    return sorted(
+        runs, key=lambda r: (r.spec, r.problem_label, r.variant, r.algorithm_label, r.seed)
+    )
+
+
+# ---------------------------------------------------------------------- tables
+def _fmt(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def _mean_std(values: np.ndarray) -> str:
+    std = float(values.std(ddof=1)) if values.size > 1 else 0.0
+    return f"{_fmt(float(values.mean()))} ± {_fmt(std)}"
+
+
+def compare(
+    finals: dict[str, dict[int, float]], alpha: float
+) -> tuple[str, dict[str, float], dict[str, bool]]:
+    """Best algorithm (highest mean), Holm-adjusted paired Wilcoxon p against it, and whether
+    each algorithm is not significantly different from the best (the best itself: True)."""
+    means = {a: float(np.mean(list(v.values()))) for a, v in finals.items()}
+    best = sorted(means, key=lambda a: (-means[a], a))[0]
+    others = sorted(a for a in finals if a != best)
+    raw = []
+    for a in others:
+        seeds = sorted(set(finals[a]) & set(finals[best]))
+        raw.append(paired_wilcoxon([finals[best][s] for s in seeds], [finals[a][s] for s in seeds]))
+    adjusted = dict(zip(others, holm(raw), strict=True))
+    tied = {a: adjusted[a] >= alpha for a in others}
+    tied[best] = True
+    return best, adjusted, tied
+
+
+def _mark(text: str, algorithm: str, best: str, tied: dict[str, bool]) -> str:
+    if algorithm == best:
+        return f"**{text}**"
+    return f"<u>{text}</u>" if tied[algorithm] else text
+
+
+def group_table(runs: Sequence[StoredRun], alpha: float) -> list[str]:
+    """The Markdown table of one group (module docstring)."""
+    algorithms = sorted({r.algorithm_label for r in runs})
+    metrics = {
+        "best_seen": {
+            a: {r.seed: float(r.best_seen[-1]) for r in runs if r.algorithm_label == a}
+            for a in algorithms
+        },
+        "cumulative": {
+            a: {r.seed: float(r.cumulative[-1]) for r in runs if r.algorithm_label == a}
+            for a in algorithms
+        },
+    }
+    results = {m: compare(v, alpha) for m, v in metrics.items()}
+    lines = [
+        "| algorithm | runs | evaluations | final best-seen | p (Holm) "
+        "| final cumulative | p (Holm) |",
+        "| --- | ---: | ---: | --- | ---: | --- | ---: |",
+    ]
+    for a in algorithms:
+        cells = [a]
+        mine = [r for r in runs if r.algorithm_label == a]
+        cells.append(str(len(mine)))
+        cells.append("/".join(sorted({str(r.best_seen.size) for r in mine})))
+        for m in ("best_seen", "cumulative"):
+            best, adjusted, tied = results[m]
+            values = np.array(list(metrics[m][a].values()))
+            cells.append(_mark(_mean_std(values), a, best, tied))
+            cells.append("best" if a == best else f"{adjusted[a]:.3g}")
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def compute_table(runs: Sequence[StoredRun]) -> list[str]:
+    """Optimizer seconds per run against the paper's App. E figure."""
+    lines = [
+        "| spec | problem | algorithm | runs | optimizer s/run "
+        "| paper s/run (App. E) | paper / ours |",
+        "| --- | --- | --- | ---: | --- | ---: | ---: |",
+    ]
+    keys = sorted({(r.spec, r.problem_label, r.variant, r.algorithm_label) for r in runs})
+    for spec, problem, variant, alg in keys:
+        mine = [
+            r
+            for r in runs
+            if (r.spec, r.problem_label, r.variant, r.algorithm_label)
+            == (spec, problem, variant, alg)
+        ]
+        secs = np.array([r.optimizer_seconds for r in mine])
+        s = mine[0].settings
+        comparable = (
+            alg == s["algorithm"]
+            and not s["optimizer_options"]
+            and not s["problem_options"]
+            and s["budget"] is None
+            and s["initial_design"] == 2
+        )
+        paper = PAPER_SECONDS.get((s["problem"], s["algorithm"])) if comparable else None
+        ratio = "" if paper is None or secs.mean() <= 0 else f"{paper / secs.mean():.3g}x"
+        label = problem + (f" ({variant})" if variant else "")
+        lines.append(
+            f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)} | "
+            f"{'' if paper is None else f'{paper:g}'} | {ratio} |"
+        )
+    return lines
+
+
+# ---------------------------------------------------------------------- figures
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: Path) -> None:
+    fig.savefig(path, dpi=100, metadata={"Software": None})
+    _pyplot().close(fig)
+
+
+def plot_curves(runs: Sequence[StoredRun], title: str, path: Path) -> None:
+    """Best-seen and cumulative vs evaluation, mean ± std over seeds, per algorithm."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for alg in sorted({r.algorithm_label for r in runs}):
+        mine = [r for r in runs if r.algorithm_label == alg]
+        n = min(r.best_seen.size for r in mine)
+        x = np.arange(1, n + 1)
+        for ax, key in zip(axes, ("best_seen", "cumulative"), strict=True):
+            y = np.stack([getattr(r, key)[:n] for r in mine])
+            m, s = y.mean(0), y.std(0)
+            ax.plot(x, m, label=alg)
+            ax.fill_between(x, m - s, m + s, alpha=0.2)
+    for ax, key in zip(axes, ("best-seen f", "cumulative f"), strict=True):
+        ax.set_xlabel("evaluation")
+        ax.set_ylabel(key)
+        ax.set_title(f"{title}: {key} (mean ± std)")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_gp_summary(runs: Sequence[StoredRun], path: Path) -> bool:
+    """Final best-seen vs d per lengthscale, within- and out-of-model (paper App. D.4)."""
+    gp = [r for r in runs if r.settings["problem"] == "gp_sample"]
+    if not gp:
+        return False
+    plt = _pyplot()
+    scales = sorted({float(r.settings["problem_options"]["lengthscale"]) for r in gp})
+    modes = sorted({r.within_model for r in gp}, reverse=True)
+    fig, axes = plt.subplots(
+        len(modes), len(scales), figsize=(5 * len(scales), 3.6 * len(modes)), squeeze=False
+    )
+    for i, within in enumerate(modes):
+        for j, ls in enumerate(scales):
+            ax = axes[i][j]
+            sel = [
+                r
+                for r in gp
+                if r.within_model == within
+                and float(r.settings["problem_options"]["lengthscale"]) == ls
+            ]
+            for alg in sorted({r.algorithm_label for r in sel}):
+                dims = sorted(
+                    {
+                        int(r.settings["problem_options"]["dim"])
+                        for r in sel
+                        if r.algorithm_label == alg
+                    }
+                )
+                finals = [
+                    np.array(
+                        [
+                            r.best_seen[-1]
+                            for r in sel
+                            if r.algorithm_label == alg
+                            and int(r.settings["problem_options"]["dim"]) == d
+                        ]
+                    )
+                    for d in dims
+                ]
+                m = np.array([f.mean() for f in finals])
+                s = np.array([f.std() for f in finals])
+                ax.errorbar(dims, m, yerr=s, marker="o", capsize=3, label=alg)
+            ax.set_xlabel("d")
+            ax.set_ylabel("final best-seen f")
+            ax.set_title(f"{'within' if within else 'out-of'}-model, lengthscale {ls:g}")
+            ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, path)
+    return True
+
+
+# ---------------------------------------------------------------------- report
+def write_report(paths: Iterable[str | Path], out: Path, alpha: float = 0.05) -> Path:
+    """Write ``report.md`` and the PNGs into ``out`` (module docstring); return the report."""
+    if not 0.0 < alpha < 1.0:
+        raise SettingError("--alpha", f"must lie in (0, 1), got {alpha!r}")
+    runs = load_runs(paths)
+    out.mkdir(parents=True, exist_ok=True)
+    lines = [
+        "# localpbo report",
+        "",
+        f"{len(runs)} runs. Mean ± sample std over seeds. **Bold**: the best mean; "
+        f"<u>underlined</u>: not significantly different from the best (two-sided paired "
+        f"Wilcoxon signed-rank test by seed, Holm-corrected, alpha = {alpha:g}); p (Holm): "
+        "the adjusted p-value against the best.",
+        "",
+    ]
+    groups: dict[tuple[str, str, str], list[StoredRun]] = {}
+    for r in runs:
+        groups.setdefault((r.spec, r.problem_label, r.variant), []).append(r)
+    for (spec, problem, variant), members in sorted(groups.items()):
+        name = "__".join(p for p in ("curves", spec, problem, variant) if p) + ".png"
+        title = problem + (f" ({variant})" if variant else "")
+        plot_curves(members, title, out / name)
+        lines += [
+            f"## {spec}: {title}",
+            "",
+            *group_table(members, alpha),
+            "",
+            f"![curves]({name})",
+            "",
+        ]
+    if plot_gp_summary(runs, out / "gp_summary.png"):
+        lines += ["## GP sample paths: final best-seen against d", "", "![gp](gp_summary.png)", ""]
+    lines += [
+        "## Compute time",
+        "",
+        "Optimizer seconds per run (ask and tell; evaluations and oracle excluded). The "
+        "paper's App. E figures are per run at the paper's budget on 8-core nodes; the ratio "
+        "is shown only for runs at the default budget and options.",
+        "",
+        *compute_table(runs),
+        "",
+    ]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def main_report(args: Any) -> int:
+    """The ``localpbo report`` command."""
+    path = write_report(args.results, Path(args.out), alpha=args.alpha)
+    print(f"report: {path}")
+    return 0

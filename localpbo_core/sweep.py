@@ -1,0 +1,331 @@
+"""``localpbo sweep SPEC``: every run of an experiment spec as a Ray task, resumable.
+
+* **Execution**: each run (:class:`~localpbo_core.experiments.PlannedRun`) is one Ray task
+  (``num_cpus=1``) that builds its :class:`~localpbo_core.session.Session` and drives it
+  with :func:`~localpbo_core.loop.run_session`, exactly as ``localpbo bench`` does in-process,
+  so the same settings give the same trace (candidates, values, answers, true values) in a
+  worker and in-process; only the measured seconds differ. By default an embedded local Ray
+  starts with ``num_cpus`` = the machine's cores (``--workers``); ``--address`` submits to an
+  existing cluster instead (every node needs this package installed). Ray sets
+  ``OMP_NUM_THREADS`` to a task's ``num_cpus`` (1) in its workers, so torch and BLAS run one
+  thread per task, which is also the rule of :mod:`localpbo_core.threads`.
+  ``--in-process`` runs the plan sequentially without Ray.
+* **Storage**: one gzip-compressed JSON document per finished run,
+  ``OUT/runs/<run_id>.json.gz`` (``run_id`` = ``<problem>__<algorithm>[__<variant>]__seed<k>``):
+  the content of ``localpbo bench``'s ``runs/*.json`` (schema ``localpbo/run/v1``: settings,
+  candidates, answers, per-evaluation records) plus ``run`` (spec name, labels, seed,
+  within-model flag) and ``optimizer_seconds``. The driver writes it atomically (a temporary
+  file in the same folder, then ``os.replace``), with a fixed gzip time stamp.
+* **Resume**: a run whose file exists (and holds the same settings) is finished and skipped;
+  a run whose worker died is retried by Ray (``max_retries``); a run that raised is reported
+  at the end and not stored, so the next sweep tries it again. ``--max-runs N`` runs only
+  the first N unfinished runs; ``--problems``, ``--algorithms``, ``--variants`` (labels) and
+  ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import logging
+import os
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from localpbo_core.experiments import ExperimentSpec, PlannedRun
+from localpbo_core.settings import SettingError
+
+RUN_SUFFIX = ".json.gz"
+MAX_RETRIES = 3
+"""Ray retries of a task whose worker process died (not of a run that raised)."""
+
+
+@dataclass
+class SweepResult:
+    """What a sweep did: run ids finished now, skipped as already stored, and failed."""
+
+    finished: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+    pending: list[str] = field(default_factory=list)
+
+
+def run_path(out: Path, plan: PlannedRun) -> Path:
+    """``OUT/runs/<run_id>.json.gz``."""
+    return out / "runs" / f"{plan.run_id}{RUN_SUFFIX}"
+
+
+def execute_run(plan: PlannedRun) -> dict[str, Any]:
+    """Run ``plan`` in this process and return its stored document (module docstring)."""
+    from localpbo_core.cli import trace_document
+    from localpbo_core.loop import run_session
+    from localpbo_core.session import Session
+
+    trace = run_session(Session(plan.settings))
+    doc = trace_document(plan.settings, trace)
+    doc["run"] = plan.describe()
+    doc["optimizer_seconds"] = sum(r.decision_seconds for r in trace.records)
+    return doc
+
+
+def write_run(path: Path, doc: dict[str, Any]) -> None:
+    """Write ``doc`` as gzip-JSON atomically (temporary file + rename, fixed time stamp)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    data = (json.dumps(doc, default=str) + "\n").encode()
+    with open(tmp, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+
+
+def read_run(path: Path) -> dict[str, Any]:
+    """A stored run document (``.json.gz`` or the plain ``.json`` of ``localpbo bench``)."""
+    if path.name.endswith(".gz"):
+        with gzip.open(path, "rt") as fh:
+            doc = json.load(fh)
+    else:
+        doc = json.loads(path.read_text())
+    if not isinstance(doc, dict) or doc.get("schema") != "localpbo/run/v1":
+        raise SettingError("results", f"{path} is not a localpbo/run/v1 document")
+    return doc
+
+
+def is_finished(out: Path, plan: PlannedRun) -> bool:
+    """True if ``plan``'s file exists and holds the same settings.
+
+    Raises:
+        SettingError: the file holds a run with other settings (field ``--out``).
+    """
+    from localpbo_core.cli import settings_document
+
+    path = run_path(out, plan)
+    if not path.exists():
+        return False
+    try:
+        doc = read_run(path)
+    except (OSError, ValueError, EOFError):  # unreadable: run it again
+        return False
+    if doc.get("settings") != settings_document(plan.settings):
+        raise SettingError(
+            "--out", f"{path} holds run {plan.run_id} with other settings; use another --out"
+        )
+    return True
+
+
+def select_runs(
+    spec: ExperimentSpec,
+    problems: Sequence[str] | None = None,
+    algorithms: Sequence[str] | None = None,
+    variants: Sequence[str] | None = None,
+    seeds: Sequence[int] | None = None,
+) -> list[PlannedRun]:
+    """The runs of ``spec`` whose labels and seed pass the filters (None: all).
+
+    Raises:
+        SettingError: a filter names a label or seed the spec does not have.
+    """
+    known: dict[str, list[Any]] = {
+        "--problems": [p.label for p in spec.problems],
+        "--algorithms": [a.label for a in spec.algorithms],
+        "--variants": [v.label for v in spec.variants],
+        "--seeds": list(spec.seeds),
+    }
+    chosen: dict[str, Sequence[Any] | None] = {
+        "--problems": problems,
+        "--algorithms": algorithms,
+        "--variants": variants,
+        "--seeds": seeds,
+    }
+    for flag, values in chosen.items():
+        for v in values or ():
+            if v not in known[flag]:
+                raise SettingError(
+                    flag, f"{v!r} is not in the spec; available: {', '.join(map(str, known[flag]))}"
+                )
+    return [
+        r
+        for r in spec.runs()
+        if (not problems or r.problem_label in problems)
+        and (not algorithms or r.algorithm_label in algorithms)
+        and (not variants or r.variant in variants)
+        and (not seeds or r.seed in seeds)
+    ]
+
+
+def sweep(
+    spec: ExperimentSpec,
+    out: Path,
+    runs: Sequence[PlannedRun] | None = None,
+    max_runs: int | None = None,
+    address: str | None = None,
+    workers: int | None = None,
+    in_process: bool = False,
+    progress: bool = True,
+    on_stored: Callable[[PlannedRun], None] | None = None,
+) -> SweepResult:
+    """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
+
+    Args:
+        spec: the loaded spec (its copy is written to ``OUT/spec.json``).
+        out: output folder; finished runs in ``OUT/runs``.
+        runs: the selection (:func:`select_runs`).
+        max_runs: run at most this many unfinished runs (in spec order).
+        address: an existing Ray cluster (``ray.init(address=...)``); None: embedded Ray.
+        workers: CPUs of the embedded Ray (default: the machine's cores).
+        in_process: run sequentially in this process, without Ray.
+        progress: show a progress bar with ETA.
+        on_stored: called after each run is stored.
+    """
+    from tqdm import tqdm
+
+    plans = list(spec.runs() if runs is None else runs)
+    result = SweepResult()
+    todo = []
+    for plan in plans:
+        if is_finished(out, plan):
+            result.skipped.append(plan.run_id)
+        else:
+            todo.append(plan)
+    if max_runs is not None:
+        result.pending = [p.run_id for p in todo[max_runs:]]
+        todo = todo[:max_runs]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "spec.json").write_text(json.dumps(_spec_document(spec), indent=1) + "\n")
+    bar = tqdm(total=len(todo), disable=not progress, unit="run", dynamic_ncols=True)
+
+    def store(plan: PlannedRun, doc: dict[str, Any]) -> None:
+        write_run(run_path(out, plan), doc)
+        result.finished.append(plan.run_id)
+        bar.set_postfix_str(plan.run_id, refresh=False)
+        bar.update(1)
+        if on_stored is not None:
+            on_stored(plan)
+
+    def fail(plan: PlannedRun, error: str) -> None:
+        result.failed[plan.run_id] = error
+        bar.update(1)
+
+    try:
+        if in_process:
+            for plan in todo:
+                try:
+                    doc = execute_run(plan)
+                except Exception as exc:  # a bug in one run must not stop the sweep
+                    fail(plan, f"{type(exc).__name__}: {exc}")
+                    continue
+                store(plan, doc)
+        elif todo:
+            _run_on_ray(todo, address, workers, store, fail)
+    finally:
+        bar.close()
+    return result
+
+
+def _run_on_ray(
+    todo: Iterable[PlannedRun],
+    address: str | None,
+    workers: int | None,
+    store: Callable[[PlannedRun, dict[str, Any]], None],
+    fail: Callable[[PlannedRun, str], None],
+) -> None:
+    import ray
+
+    started = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+        if address is None:
+            kwargs["num_cpus"] = workers or os.cpu_count() or 1
+        ray.init(address=address, logging_level=logging.ERROR, **kwargs)
+        started = True
+    try:
+        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
+        refs = {task.remote(plan): plan for plan in todo}
+        waiting = list(refs)
+        while waiting:
+            done, waiting = ray.wait(waiting, num_returns=1)
+            for ref in done:
+                plan = refs.pop(ref)
+                try:
+                    doc = ray.get(ref)
+                except ray.exceptions.RayError as exc:
+                    fail(plan, str(exc).strip().splitlines()[-1])
+                    continue
+                store(plan, doc)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _spec_document(spec: ExperimentSpec) -> dict[str, Any]:
+    return {
+        "name": spec.name,
+        "paper": spec.paper,
+        "path": spec.path,
+        "seeds": list(spec.seeds),
+        "problems": [p.label for p in spec.problems],
+        "algorithms": [a.label for a in spec.algorithms],
+        "variants": [v.label for v in spec.variants if v.label],
+        "within_model": spec.within_model,
+    }
+
+
+def format_dry_run(out: Path, plans: Sequence[PlannedRun], max_runs: int | None) -> str:
+    """One line per run: its id, state (finished / will run / left for later) and budget."""
+    lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
+    counts = {"finished": 0, "will run": 0, "later": 0}
+    started = 0
+    for plan in plans:
+        if is_finished(out, plan):
+            state = "finished"
+        elif max_runs is None or started < max_runs:
+            state, started = "will run", started + 1
+        else:
+            state = "later"
+        counts[state] += 1
+        budget = "default" if plan.settings.budget is None else str(plan.settings.budget)
+        lines.append(f"{plan.run_id:<48} {state:<10} {budget:>7} {plan.settings.initial_design:>5}")
+    lines.append(", ".join(f"{n} {k}" for k, n in counts.items()) + f" ({len(plans)} runs)")
+    return "\n".join(lines)
+
+
+def main_sweep(args: Any) -> int:
+    """The ``localpbo sweep`` command (arguments from :mod:`localpbo_core.cli`)."""
+    from localpbo_core.cli import parse_seeds
+    from localpbo_core.experiments import load_spec
+
+    def labels(text: str | None) -> list[str] | None:
+        return None if not text else [t.strip() for t in text.split(",") if t.strip()]
+
+    spec = load_spec(args.spec)
+    seeds = None if args.seeds is None else parse_seeds(args.seeds)
+    if args.max_runs is not None and args.max_runs < 0:
+        raise SettingError("--max-runs", f"must be >= 0, got {args.max_runs}")
+    plans = select_runs(
+        spec, labels(args.problems), labels(args.algorithms), labels(args.variants), seeds
+    )
+    out = Path(args.out)
+    if args.dry_run:
+        print(format_dry_run(out, plans, args.max_runs))
+        return 0
+    start = time.perf_counter()
+    result = sweep(
+        spec,
+        out,
+        plans,
+        max_runs=args.max_runs,
+        address=args.address,
+        workers=args.workers,
+        in_process=args.in_process,
+        progress=not args.no_progress,
+    )
+    print(
+        f"{spec.name}: {len(result.finished)} runs finished, {len(result.skipped)} already "
+        f"stored, {len(result.failed)} failed, {len(result.pending)} left "
+        f"({time.perf_counter() - start:.1f} s); results in {out / 'runs'}"
+    )
+    for run_id, error in sorted(result.failed.items()):
+        print(f"FAILED {run_id}: {error}")
+    return 1 if result.failed else 0

@@ -1,0 +1,149 @@
+"""Experiment specs: the bundled ones parse, the loader refuses bad specs naming the field."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+
+from localpbo_core.experiments import load_spec, parse_spec
+from localpbo_core.experiments.spec import SPEC_DIR, validate_runs
+from localpbo_core.optimizers.registry import available_optimizers
+from localpbo_core.settings import SettingError
+
+BUNDLED = sorted(p.stem for p in SPEC_DIR.glob("*.yaml"))
+PENDING = {
+    "pending_prefsqp_ev": "algorithms[0].options.line_search",
+    "pending_turpbo_ei": "algorithms[0].options.acquisition",
+    "pending_hbei": "algorithms[0].algorithm",
+}
+GOOD = {
+    "schema": "localpbo/experiment/v1",
+    "name": "t",
+    "seeds": "0-1",
+    "settings": {"budget": 6},
+    "problems": [{"problem": "hartmann6"}],
+    "algorithms": [{"algorithm": "sobol"}, {"algorithm": "turpbo", "label": "tr"}],
+}
+
+
+def test_every_paper_result_has_a_spec() -> None:
+    for name in (
+        "gp_within",
+        "gp_out_of_model",
+        "synthetic",
+        "policy_warm_start",
+        "policy_no_warm_start",
+        "ablation_prefsqp_line_search",
+        "ablation_turpbo_acquisition",
+        "ablation_qeubo_batch",
+        "ablation_noise",
+        "tiny",
+    ):
+        assert name in BUNDLED
+
+
+@pytest.mark.parametrize("name", [n for n in BUNDLED if n not in PENDING])
+def test_bundled_specs_parse(name: str) -> None:
+    spec = parse_spec(yaml.safe_load((SPEC_DIR / f"{name}.yaml").read_text()))
+    assert spec.name == name
+    ids = [r.run_id for r in spec.runs()]
+    assert len(ids) == len(set(ids))
+
+
+@pytest.mark.parametrize("name", ["synthetic", "ablation_qeubo_batch", "tiny", "policy_warm_start"])
+def test_bundled_specs_validate(name: str) -> None:
+    validate_runs(load_spec(name, validate=False))
+
+
+@pytest.mark.parametrize("name", sorted(PENDING))
+def test_pending_variants_are_refused_today(name: str) -> None:
+    if name == "pending_hbei" and "hbei" in available_optimizers():
+        pytest.skip("hbei is registered: merge pending_hbei.yaml into synthetic.yaml")
+    with pytest.raises(SettingError) as info:
+        load_spec(name)
+    assert info.value.field == PENDING[name]
+
+
+def test_policy_warm_start_is_best_of_5d_then_one_random() -> None:
+    runs = load_spec("policy_warm_start", validate=False).runs()
+    hopper = next(r for r in runs if r.problem_label == "hopper")
+    assert hopper.settings.initial_design == 5 * 33 + 1
+    assert hopper.settings.budget is None  # initial design + 10 d = 15 d + 1
+    nows = load_spec("policy_no_warm_start", validate=False).runs()
+    assert next(r for r in nows if r.problem_label == "hopper").settings.budget == 15 * 33 + 1
+
+
+def test_within_model_gives_true_hyperparameters_and_seed_instances() -> None:
+    spec = load_spec("gp_within", validate=False)
+    runs = [r for r in spec.runs() if r.problem_label == "gp8_l0.5" and r.seed in (0, 3)]
+    for r in runs:
+        assert r.settings.problem_options["instance"] == r.seed
+        hp = r.settings.optimizer_options.get("hyperparameters")
+        if r.algorithm_label in ("sobol", "glisp"):
+            assert hp is None
+        else:
+            assert hp == {"lengthscale": 0.5, "outputscale": 1.0}
+    out = load_spec("gp_out_of_model", validate=False).runs()
+    assert all("hyperparameters" not in r.settings.optimizer_options for r in out)
+
+
+def _refusal(change, field: str, tmp_path: Path) -> None:
+    doc = copy.deepcopy(GOOD)
+    change(doc)
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(SettingError) as info:
+        load_spec(path)
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda d: d.update(sedes="0-1"), "sedes"),
+        (lambda d: d.update(schema="v0"), "schema"),
+        (lambda d: d.pop("seeds"), "seeds"),
+        (lambda d: d.update(seeds="0,0"), "seeds"),
+        (lambda d: d.update(seeds=[0, -1]), "seeds"),
+        (lambda d: d.update(seeds="a-b"), "seeds"),
+        (lambda d: d.update(seeds=[True]), "seeds"),
+        (lambda d: d["settings"].update(budgit=3), "settings.budgit"),
+        (lambda d: d["settings"].update(budget="ten"), "settings.budget"),
+        (lambda d: d["settings"].update(budget=1), "settings.budget"),
+        (lambda d: d["settings"].update(noise_fraction=-1), "settings.noise_fraction"),
+        (lambda d: d["problems"][0].update(problem="ackley"), "problems[0].problem"),
+        (lambda d: d["problems"][0].update(options={"x": 1}), "problems[0].label"),
+        (
+            lambda d: d["problems"].append(
+                {"problem": "gp_sample", "label": "g", "options": {"dim": 2}}
+            ),
+            "problems[1].options.lengthscale",
+        ),
+        (lambda d: d["algorithms"][0].update(algorithm="hbei2"), "algorithms[0].algorithm"),
+        (lambda d: d["algorithms"][1].update(optoins={}), "algorithms[1].optoins"),
+        (
+            lambda d: d["algorithms"][1].update(options={"batch_size": 0}),
+            "algorithms[1].options.batch_size",
+        ),
+        (lambda d: d["algorithms"][1].update(options={"nope": 1}), "algorithms[1].options.nope"),
+        (lambda d: d["algorithms"][1].update(label="sobol"), "algorithms[1].label"),
+        (lambda d: d["algorithms"][1].update(label="a__b"), "algorithms[1].label"),
+        (lambda d: d.update(within_model=True), "within_model"),
+        (lambda d: d.update(variants=[{"settings": {}}]), "variants[0].label"),
+        (
+            lambda d: d.update(variants=[{"label": "v", "settings": {"noise_fraction": "x"}}]),
+            "variants[0].settings.noise_fraction",
+        ),
+    ],
+)
+def test_refusals_name_the_field(change, field: str, tmp_path: Path) -> None:
+    _refusal(change, field, tmp_path)
+
+
+def test_unknown_spec_name() -> None:
+    with pytest.raises(SettingError) as info:
+        load_spec("no_such_spec")
+    assert info.value.field == "spec"

@@ -1,0 +1,48 @@
+"""Statistics of ``localpbo report``: Holm against statsmodels, the paired Wilcoxon test
+against scipy and a published example, the best/underline marking."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import wilcoxon
+from statsmodels.stats.multitest import multipletests
+
+from localpbo_core.report import compare, holm, paired_wilcoxon
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_holm_matches_statsmodels(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    p = rng.random(7) ** 3
+    expected = multipletests(p, method="holm")[1]
+    np.testing.assert_allclose(holm(list(p)), expected, rtol=0, atol=1e-15)
+
+
+def test_holm_textbook_example() -> None:
+    # m = 4: sorted p 0.01, 0.02, 0.03, 0.5 -> 0.04, 0.06, 0.06 (monotone), 0.5
+    assert holm([0.03, 0.01, 0.5, 0.02]) == pytest.approx([0.06, 0.04, 0.5, 0.06])
+
+
+def test_paired_wilcoxon_matches_scipy_and_a_published_value() -> None:
+    # scipy's documented example (Cushny & Peebles via Fisher, "Design of Experiments"):
+    # differences in height of cross- and self-fertilised corn plants; exact p = 0.04126
+    d = np.array([6, 8, 14, 16, 23, 24, 28, 29, 41, -48, 49, 56, 60, -67, 75], dtype=float)
+    assert paired_wilcoxon(d, np.zeros_like(d)) == pytest.approx(0.04126, abs=5e-6)
+    rng = np.random.default_rng(3)
+    x, y = rng.normal(size=12), rng.normal(0.5, size=12)
+    assert paired_wilcoxon(x, y) == wilcoxon(x, y).pvalue
+    assert paired_wilcoxon([1.0, 2.0], [1.0, 2.0]) == 1.0
+
+
+def test_compare_marks_best_and_ties() -> None:
+    seeds = range(10)
+    finals = {
+        "a": {s: 10.0 + 0.1 * s for s in seeds},  # best
+        "b": {s: 10.0 + 0.1 * s - (0.01 if s % 2 else -0.005) for s in seeds},  # ~ a
+        "c": {s: 5.0 + 0.1 * s for s in seeds},  # clearly worse in every pair
+    }
+    best, adjusted, tied = compare(finals, alpha=0.05)
+    assert best == "a"
+    assert tied == {"a": True, "b": True, "c": False}
+    assert adjusted["c"] < 0.05 <= adjusted["b"]
