@@ -23,5 +23,6 @@ setup(
     package_data={
         "localpbo_sims": ["data/ars/*.npz", "data/ars/LICENSE", "data/ars/README.md"],
         "localpbo_ros": ["localhost_only.xml"],
+        "localpbo_core.experiments": ["*.yaml"],
     },
 )
