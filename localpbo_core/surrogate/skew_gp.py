@@ -82,6 +82,8 @@ from scipy.special import log_ndtr, ndtri_exp
 DEFAULT_NOISE_STD = 1.0
 #: Redraws of the angle of one LinESS step before the step keeps its current state.
 _MAX_ANGLE_DRAWS = 64
+#: LinESS steps whose random directions are drawn in one block.
+_BLOCK_STEPS = 256
 
 
 def se_kernel_np(
@@ -113,26 +115,43 @@ def truncated_standard_normal_above(a: np.ndarray, rng: np.random.Generator) -> 
     return np.maximum(u, np.nextafter(a, np.inf))
 
 
-def lin_ess_step(g: np.ndarray, chol_M: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def lin_ess_step(
+    g: np.ndarray,
+    chol_M: np.ndarray,
+    rng: np.random.Generator,
+    nu: np.ndarray | None = None,
+    u: np.ndarray | None = None,
+) -> np.ndarray:
     """One LinESS step for ``N(0, M)`` restricted to ``{g > 0}`` (see the module docstring).
 
     Args:
         g: ``(C, m)`` current states of ``C`` independent chains, every entry > 0.
         chol_M: ``(m, m)`` lower Cholesky factor of ``M``.
         rng: source of every random draw.
+        nu: optional pre-drawn ``(C, m)`` rows ``~ N(0, M)`` (else drawn from ``rng``).
+        u: optional pre-drawn ``(C,)`` uniforms for the angles (else drawn from ``rng``).
 
     Returns:
         ``(C, m)`` new states, every entry > 0.
     """
-    C, m = g.shape
-    nu = rng.standard_normal((C, m)) @ chol_M.T  # rows ~ N(0, M)
+    C = g.shape[0]
+    if nu is None:
+        nu = rng.standard_normal(g.shape) @ chol_M.T  # rows ~ N(0, M)
+    if u is None:
+        u = np.asarray(rng.random(C))
     phi = np.arctan2(nu, g)  # in (-pi/2, pi/2) since g > 0
     lo = phi.max(axis=1) - 0.5 * math.pi
-    hi = phi.min(axis=1) + 0.5 * math.pi
-    out = g.copy()
-    todo = np.arange(C)
+    width = phi.min(axis=1) + 0.5 * math.pi - lo
+    t = lo + width * u
+    out = g * np.cos(t)[:, None] + nu * np.sin(t)[:, None]
+    bad = ~(out > 0.0).all(axis=1)
+    if not bad.any():
+        return out
+    # Only by rounding at the very edge of the interval: redraw those angles.
+    out[bad] = g[bad]
+    todo = np.flatnonzero(bad)
     for _ in range(_MAX_ANGLE_DRAWS):
-        t = lo[todo] + (hi[todo] - lo[todo]) * rng.random(todo.size)
+        t = lo[todo] + width[todo] * rng.random(todo.size)
         prop = g[todo] * np.cos(t)[:, None] + nu[todo] * np.sin(t)[:, None]
         ok = (prop > 0.0).all(axis=1)
         out[todo[ok]] = prop[ok]
@@ -333,8 +352,17 @@ class DuelPosteriorChain:
         if self.num_duels == 0:
             return self.g
         g = self.g
-        for _ in range(steps):
-            g = lin_ess_step(g, self.chol_M, rng)
+        C, m = g.shape
+        done = 0
+        while done < steps:
+            # draw a block of directions at once (one matrix product instead of many
+            # matrix-vector products)
+            b = min(_BLOCK_STEPS, steps - done)
+            nus = rng.standard_normal((b * C, m)) @ self.chol_M.T
+            us = rng.random((b, C))
+            for i in range(b):
+                g = lin_ess_step(g, self.chol_M, rng, nus[i * C : (i + 1) * C], us[i])
+            done += b
         self.g = g
         return g
 
