@@ -58,10 +58,11 @@ def test_chain_is_warm_started_and_respects_every_duel() -> None:
     # the chain's last target: every duel but the final one (proposed before it was answered)
     assert np.array_equal(chain.winners, comps[:-1, 0])
     assert (chain.g > 0).all()
-    # 12 iterations, hyperparameters learned at iterations 0, 5, 10: three factorisations,
-    # the other iterations extended the factor by one row each
-    assert chain.full_factorizations == 3
-    assert chain.extended_rows == 12 - 3
+    # 12 iterations, hyperparameters learned at iterations 0, 5, 10: at most three
+    # factorisations (a relearn that returns the same values keeps the factor), every other
+    # iteration extended the factor by one row
+    assert 1 <= chain.full_factorizations <= 3
+    assert chain.full_factorizations + chain.extended_rows == 12
     assert opt.surrogate is not None
 
 
