@@ -91,6 +91,14 @@ def expected_improvement(
     return ei, grad
 
 
+def expected_improvement_value(gp: ConditionedGP, best: float, x: np.ndarray) -> np.ndarray:
+    """EI ``(N,)`` of :func:`expected_improvement` without the gradient."""
+    mu, var = gp.mean_var(x)
+    s = np.sqrt(var)
+    z = (mu - best) / s
+    return (mu - best) * ndtr(z) + s * _INV_SQRT_2PI * np.exp(-0.5 * z * z)
+
+
 class HBEI(KingOfTheHillOptimizer):
     """HB-EI (Takeno et al. 2023) behind the ask/tell contract; see the module docstring.
 
@@ -182,14 +190,14 @@ class HBEI(KingOfTheHillOptimizer):
         best = float(gp.mean_var(inc[None, :])[0][0])
 
         raw = np.vstack([inc[None, :], rng.random((self.num_raw_samples, self.dim))])
-        vals = expected_improvement(gp, best, raw)[0]
+        vals = expected_improvement_value(gp, best, raw)
         starts = raw[np.argsort(-vals, kind="stable")[: self.num_restarts]]
 
         def value_and_grad(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return expected_improvement(gp, best, x)
 
         def values(x: np.ndarray) -> np.ndarray:
-            return expected_improvement(gp, best, x)[0]
+            return expected_improvement_value(gp, best, x)
 
         lo, hi = np.zeros(self.dim), np.ones(self.dim)
         xs, fs = _lbfgsb_multistart(value_and_grad, values, starts, lo, hi, maxiter=200)

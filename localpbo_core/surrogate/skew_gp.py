@@ -198,28 +198,36 @@ class ConditionedGP:
     alpha: np.ndarray
     Q: np.ndarray
 
+    def _cross(self, x: np.ndarray) -> np.ndarray:
+        """``k(x, X)`` ``(N, n)`` by one matrix product (``|a|^2 + |b|^2 - 2 a.b`` of the
+        scaled points): no ``(N, n, d)`` temporary."""
+        a = x / self.lengthscale
+        b = self.X / self.lengthscale
+        sq = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
+        return self.outputscale * np.exp(-0.5 * np.maximum(sq, 0.0))
+
     def mean_var(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Posterior mean and variance ``(N,)`` at points ``x`` ``(N, d)``."""
-        b = se_kernel_np(x, self.X, self.lengthscale, self.outputscale)
+        b = self._cross(x)
         var = self.outputscale - np.einsum("ij,ij->i", b @ self.Q, b)
         return b @ self.alpha, np.maximum(var, 1e-12 * self.outputscale)
 
     def mean_var_grad(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Mean, variance ``(N,)`` and their gradients ``(N, d)`` in ``x``.
 
-        With ``b_j = k(x, X_j)``: ``db_j/dx = -b_j (x - X_j) / l^2``, so
-        ``dmu/dx = -sum_j alpha_j b_j (x - X_j) / l^2`` and
-        ``dvar/dx = 2 sum_j (Q b)_j b_j (x - X_j) / l^2``."""
+        With ``b_j = k(x, X_j)``: ``db_j/dx = -b_j (x - X_j) / l^2``, so for weights ``w_j``
+        ``sum_j w_j db_j/dx = -(x sum_j w_j b_j - sum_j w_j b_j X_j) / l^2``: the mean has
+        ``w = alpha``, the variance ``w = -2 Q b``."""
         inv_l2 = self.lengthscale**-2
-        diff = x[:, None, :] - self.X[None, :, :]  # (N, n, d)
-        b = self.outputscale * np.exp(-0.5 * np.einsum("ijk,ijk->ij", diff * inv_l2, diff))
+        b = self._cross(x)
         Qb = b @ self.Q
         raw_var = self.outputscale - np.einsum("ij,ij->i", Qb, b)
         floor = 1e-12 * self.outputscale
         var = np.maximum(raw_var, floor)
         wm = b * self.alpha  # (N, n)
-        dmu = -np.einsum("ij,ijk->ik", wm, diff) * inv_l2
-        dvar = 2.0 * np.einsum("ij,ijk->ik", Qb * b, diff) * inv_l2
+        dmu = -(x * wm.sum(1)[:, None] - wm @ self.X) * inv_l2
+        wv = Qb * b
+        dvar = 2.0 * (x * wv.sum(1)[:, None] - wv @ self.X) * inv_l2
         dvar = np.where((raw_var > floor)[:, None], dvar, 0.0)
         return b @ self.alpha, var, dmu, dvar
 
