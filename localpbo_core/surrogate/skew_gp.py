@@ -393,10 +393,18 @@ class DuelPosteriorChain:
     def sample_latent(self, rng: np.random.Generator, jitter: float = 1e-10) -> np.ndarray:
         """A draw of ``f`` at the points given the current ``g`` of every chain, ``(C, n)``,
         by pathwise conditioning (module docstring); ``jitter * s`` is added to the diagonal
-        of ``K`` for the prior draw only (near-duplicate points)."""
+        of ``K`` for the prior draw only (near-duplicate points), grown x100 up to ``1e-4 s``
+        if the factorisation fails."""
         n = self.X.shape[0]
         C = self.num_chains
-        Lk = np.linalg.cholesky(self.K + jitter * self.outputscale * np.eye(n))
+        while True:
+            try:
+                Lk = np.linalg.cholesky(self.K + jitter * self.outputscale * np.eye(n))
+                break
+            except np.linalg.LinAlgError:
+                if jitter >= 1e-4:
+                    raise
+                jitter *= 100.0
         f0 = rng.standard_normal((C, n)) @ Lk.T
         eps0 = math.sqrt(self.noise_var) * rng.standard_normal((C, self.num_duels))
         resid = self.g - (f0[:, self.winners] - f0[:, self.losers]) - eps0

@@ -205,3 +205,18 @@ def test_same_generator_same_chain() -> None:
 
     assert np.array_equal(run(8), run(8))
     assert not np.array_equal(run(8), run(9))
+
+
+def test_duplicate_points_are_fine() -> None:
+    """A point proposed twice makes ``K`` singular; ``M = H K H^T + 2 I`` stays positive
+    definite and the latent draw still works (jitter on the prior draw only)."""
+    rng = np.random.default_rng(7)
+    X = np.vstack([X4, X4[1:2]])  # point 4 duplicates point 1
+    w = np.array([0, 4, 1, 2])
+    l_ = np.array([1, 0, 4, 4])
+    chain = DuelPosteriorChain(num_chains=4)
+    chain.update(X, w, l_, LS, 1.0e4, rng)
+    g = chain.run(50, rng)
+    assert (g > 0).all()
+    f = chain.sample_latent(rng)
+    assert np.isfinite(f).all() and f.shape == (4, 5)
