@@ -26,6 +26,7 @@ _REGISTRY: dict[str, str | Factory] = {
     "gipbo": "localpbo_core.optimizers.gipbo:GIPBO",
     "gipbor": "localpbo_core.optimizers.gipbo:GIPBOr",
     "prefsqp": "localpbo_core.optimizers.prefsqp:PrefSQP",
+    "hbei": "localpbo_core.optimizers.hbei:HBEI",
 }
 
 _RUN_ARGUMENTS = ("self", "dim", "seed", "budget")
