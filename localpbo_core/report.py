@@ -12,9 +12,10 @@ label is one row. Output in ``OUT``:
   ``wilcoxon``, exact for small samples), the p-values of a group and metric are
   **Holm-corrected** (:func:`holm`), and algorithms not significantly different from the best
   (adjusted p >= ``alpha``) are underlined (``<u>…</u>``). Then the compute table: optimizer
-  seconds per run (mean ± std) next to the paper's App. E figure (:data:`PAPER_SECONDS`,
-  empty where the paper's number is not known here) and the ratio paper / ours (only for runs
-  at the default budget with default options, the configuration the paper timed).
+  seconds per run (mean ± std) next to the paper's App. E figure
+  (:data:`localpbo_core.experiments.paper.PAPER_SECONDS`, empty where the paper reports no
+  number) and the ratio paper / ours (only for runs at the default budget with default
+  options, the configuration the paper timed).
 * ``curves__<spec>__<problem>[__<variant>].png``: best-seen and cumulative against the
   evaluation, mean ± std over seeds (shaded), one line per algorithm.
 * ``gp_summary.png`` (if GP sample-path runs are present): final best-seen against d, one
@@ -33,26 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from localpbo_core.experiments.paper import paper_seconds
 from localpbo_core.settings import SettingError
-
-PAPER_SECONDS: dict[tuple[str, str], float] = {
-    ("hartmann6", "sobol"): 0.023,
-    ("hartmann6", "glisp"): 9.0,
-    ("hartmann6", "qeubo"): 33.0,
-    ("hartmann6", "gipbo"): 245.0,
-    ("hartmann6", "gipbor"): 2.6,
-    ("hartmann6", "turpbo"): 46.0,
-    ("hartmann6", "prefsqp"): 22.0,
-    ("rosenbrock16", "sobol"): 0.059,
-    ("rosenbrock16", "glisp"): 7.5,
-    ("rosenbrock16", "qeubo"): 171.0,
-    ("rosenbrock16", "gipbo"): 2453.0,
-    ("rosenbrock16", "gipbor"): 4.8,
-    ("rosenbrock16", "turpbo"): 143.0,
-    ("rosenbrock16", "prefsqp"): 66.0,
-    ("hopper", "turpbo"): 489.0,
-}
-"""Paper App. E: optimizer seconds per run at the paper's budget, (problem, algorithm)."""
 
 
 @dataclass(frozen=True)
@@ -240,7 +223,7 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
             and s["budget"] is None
             and s["initial_design"] == 2
         )
-        paper = PAPER_SECONDS.get((s["problem"], s["algorithm"])) if comparable else None
+        paper = paper_seconds(s["problem"], s["algorithm"]) if comparable else None
         ratio = "" if paper is None or secs.mean() <= 0 else f"{paper / secs.mean():.3g}x"
         label = problem + (f" ({variant})" if variant else "")
         lines.append(

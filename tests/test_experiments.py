@@ -10,14 +10,12 @@ import yaml
 
 from localpbo_core.experiments import load_spec, parse_spec
 from localpbo_core.experiments.spec import SPEC_DIR, validate_runs
-from localpbo_core.optimizers.registry import available_optimizers
 from localpbo_core.settings import SettingError
 
 BUNDLED = sorted(p.stem for p in SPEC_DIR.glob("*.yaml"))
 PENDING = {
     "pending_prefsqp_ev": "algorithms[0].options.line_search",
     "pending_turpbo_ei": "algorithms[0].options.acquisition",
-    "pending_hbei": "algorithms[0].algorithm",
 }
 GOOD = {
     "schema": "localpbo/experiment/v1",
@@ -60,8 +58,6 @@ def test_bundled_specs_validate(name: str) -> None:
 
 @pytest.mark.parametrize("name", sorted(PENDING))
 def test_pending_variants_are_refused_today(name: str) -> None:
-    if name == "pending_hbei" and "hbei" in available_optimizers():
-        pytest.skip("hbei is registered: merge pending_hbei.yaml into synthetic.yaml")
     with pytest.raises(SettingError) as info:
         load_spec(name)
     assert info.value.field == PENDING[name]

@@ -30,32 +30,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-#: Paper App. E (compute-time table), seconds per run.
-PAPER_SECONDS: dict[str, dict[str, float]] = {
-    "hartmann6": {
-        "sobol": 0.023,
-        "glisp": 9.0,
-        "qeubo": 33.0,
-        "gipbo": 245.0,
-        "gipbor": 2.6,
-        "turpbo": 46.0,
-        "prefsqp": 22.0,
-        "hbei": 175.0,
-    },
-    "rosenbrock16": {
-        "sobol": 0.059,
-        "glisp": 7.5,
-        "qeubo": 171.0,
-        "gipbo": 2453.0,
-        "gipbor": 4.8,
-        "turpbo": 143.0,
-        "prefsqp": 66.0,
-        "hbei": 716.0,
-    },
-    # Only HB-EI's figures of these two problems are tabulated here.
-    "levy32": {"hbei": 7550.0},
-    "hopper": {"hbei": 7082.0},
-}
+from localpbo_core.experiments.paper import paper_seconds
+
 #: Targets: minimum ratio paper/ours (GIPBOr: at most the paper's figure).
 TARGET_RATIO: dict[str, float] = {
     "gipbo": 20.0,
@@ -181,7 +157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             secs = float(np.mean([r[0] for r in runs]))
             cpu = float(np.mean([r[1] for r in runs]))
             best = float(np.mean([r[2] for r in runs]))
-            paper = PAPER_SECONDS.get(prob, {}).get(alg)
+            paper = paper_seconds(prob, alg)
             ratio = paper / secs if paper is not None and secs > 0 else None
             target = TARGET_RATIO.get(alg)
             met = "" if target is None or ratio is None else ("yes" if ratio >= target else "NO")

@@ -20,15 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-#: Paper App. E, seconds per run: (problem, algorithm) -> seconds.
-PAPER_SECONDS = {
-    ("hartmann6", "gipbo"): 245.0,
-    ("hartmann6", "gipbor"): 2.6,
-    ("hartmann6", "prefsqp"): 22.0,
-    ("rosenbrock16", "gipbo"): 2453.0,
-    ("rosenbrock16", "gipbor"): 4.8,
-    ("rosenbrock16", "prefsqp"): 66.0,
-}
+from localpbo_core.experiments.paper import paper_seconds
+
 #: Required speed-up factor over the paper.
 TARGET_FACTOR = {"gipbo": 20.0, "gipbor": 1.0, "prefsqp": 10.0}
 BUDGETS = {"hartmann6": 62, "rosenbrock16": 162}
@@ -68,7 +61,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             runs = [[r for r in records if r.algorithm == alg and r.seed == s] for s in seeds]
             secs = np.array([sum(r.decision_seconds for r in run) for run in runs])
             best = np.array([run[-1].best_seen for run in runs])
-            paper = PAPER_SECONDS[(problem, alg)]
+            paper = paper_seconds(problem, alg)
+            assert paper is not None
             rows.append((problem, alg, secs.mean(), best.mean(), paper, paper / secs.mean()))
     head = f"{'problem':<13}{'algorithm':<10}{'ours s/run':>11}{'paper s':>9}{'speed-up':>10}"
     print(head + f"{'target':>8}  best-seen")

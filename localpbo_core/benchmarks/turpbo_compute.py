@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-PAPER_SECONDS = 489.0  # paper App. E, TuRPBO on Hopper 33-D, 495 evaluations
+from localpbo_core.experiments.paper import PAPER_SECONDS as PAPER_SECONDS_TABLE
+
+PAPER_SECONDS = PAPER_SECONDS_TABLE["hopper"]["turpbo"]  # App. E, 495 evaluations
 DIM = 33
 
 
