@@ -120,8 +120,8 @@ class ParameterSpace:
         return log, lo, hi
 
     def to_native(self, theta: np.ndarray) -> np.ndarray:
-        """θ in [0,1]^d → values in the user's units (log-scaled ones geometrically), clipped
-        to the bounds so rounding never leaves the box."""
+        """θ in [0,1]^d → values in the user's units (log-scaled ones geometrically); the
+        corners give the bounds exactly and rounding never leaves the box."""
         t = check_theta("theta", theta, self.dim)
         log, lo, hi = self._arrays()
         linear = lo + t * (hi - lo)
@@ -129,7 +129,9 @@ class ParameterSpace:
             safe_lo = np.where(log, lo, 1.0)
             safe_hi = np.where(log, hi, 2.0)
             geometric = np.exp(np.log(safe_lo) + t * (np.log(safe_hi) - np.log(safe_lo)))
-        return np.clip(np.where(log, geometric, linear), lo, hi)
+        native = np.where(log, geometric, linear)
+        native = np.where(t == 0.0, lo, np.where(t == 1.0, hi, native))  # corners exact
+        return np.clip(native, lo, hi)
 
     def from_native(self, x: Sequence[float] | np.ndarray) -> np.ndarray:
         """Values in the user's units → θ in [0,1]^d (the inverse of :meth:`to_native`).
