@@ -97,6 +97,37 @@ def test_check_target_names_the_parameter() -> None:
         assert err.value.field == "target.g" and text in err.value.reason
 
 
+def test_run_config_carries_the_space_and_rebuilds_from_it() -> None:
+    from localpbo_ros.driver import Driver, problem_of
+    from localpbo_ros.optimizer_node import PARAMS, config_from_settings, settings_from_config
+
+    params = {p.name: p.default for p in PARAMS}
+    params = {k: json.loads(v) if k.endswith("_options") else v for k, v in params.items()}
+    config = config_from_settings({**params, "space": str(PID_SPACE), "budget": 12})
+    assert config.task == "space:pid" and config.lower == (0.1, 0.01, 0.01)
+    recorded = config.options["space"]["parameters"][0]
+    assert recorded["unit"] == "N/m" and recorded["log"] is True
+    assert problem_of(config) == load_space(PID_SPACE)
+    first = Driver(config).ask().candidates[0]  # the warm start: today's gains
+    assert first.theta == pytest.approx(ORIGINAL, rel=1e-12)
+    again = settings_from_config(config)  # what run --resume feeds the node
+    again = {k: json.loads(v) if k.endswith("_options") else v for k, v in again.items()}
+    assert config_from_settings({**params, **again}).to_json() == config.to_json()
+
+
+def test_a_bad_space_parameter_is_refused_by_name(tmp_path: Path) -> None:
+    from localpbo_ros.optimizer_node import PARAMS, config_from_settings
+    from localpbo_ros.params import ParameterError
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("parameters:\n  - {name: kp, lower: 0, upper: 1, log: true}\n")
+    params = {p.name: p.default for p in PARAMS}
+    params = {k: json.loads(v) if k.endswith("_options") else v for k, v in params.items()}
+    with pytest.raises(ParameterError) as err:
+        config_from_settings({**params, "space": str(bad)})
+    assert err.value.name == "space" and "space.kp.lower" in err.value.problem
+
+
 # ---------------------------------------------------------------------- in-process nodes
 class Target(Node):
     """A controller stand-in: parameters of every kind the bridge must refuse or accept."""
