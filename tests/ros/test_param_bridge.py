@@ -328,7 +328,7 @@ def test_target_restored_after_a_failed_run(tmp_path: Path) -> None:
         failure_policy="stop",
         budget=4,
     )
-    assert summary.state == "failed" and "no finite score" in summary.error
+    assert summary.state == "failed" and "only 0 of 300 score samples" in summary.error
     assert controller.changes and controller.changes[0] != ORIGINAL
     assert controller.final == ORIGINAL
     assert controller.changes[-1] == ORIGINAL

@@ -39,10 +39,12 @@ BRIDGE_SETTINGS = {
     "score_topic": "/pid_controller_node/cost",
     "score_kind": "cost",
     "score_reduce": "sum",
-    "done_topic": "/pid_controller_node/trial_done",
+    "trial_samples": 300,
     "trial_duration_s": 30.0,
 }
-"""``param_bridge_node`` parameters that tune this node (one trial = one episode)."""
+"""``param_bridge_node`` parameters that tune this node: one trial = one episode of the default
+``episode_steps`` (300 cost samples, counted: exact even under load; ``~/trial_done`` could
+overtake the last samples)."""
 
 COST_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 """Reliable, deep enough for a whole episode's costs in one burst."""

@@ -10,9 +10,11 @@ exits 1) and answers every candidate with a ``failed`` episode result.
 One trial per candidate, in arrival order: set all parameters at once
 (``SetParametersAtomically``), call ``reset_service`` (``std_srvs/srv/Trigger``) if given, then
 collect ``std_msgs/msg/Float64`` samples from ``score_topic`` until ``trial_duration_s`` has
-passed or the trial is declared done (``done_topic``: ``std_msgs/Empty`` or a true
-``std_msgs/Bool``; or a call of the ``done_service`` this node serves). The samples reduced by
-``score_reduce`` (``mean``, ``sum``, ``last``, ``min``, ``max``; negated for
+passed, ``trial_samples`` samples arrived, or the trial is declared done (``done_topic``:
+``std_msgs/Empty`` or a true ``std_msgs/Bool``; or a call of the ``done_service`` this node
+serves). A done message may overtake the last samples (topics are not ordered among each
+other); when the number of samples is known, ``trial_samples`` makes the window exact. The
+samples reduced by ``score_reduce`` (``mean``, ``sum``, ``last``, ``min``, ``max``; negated for
 ``score_kind=cost``) are the episode return published on ``/localpbo/episode_result``. A
 target that is gone, a refused set, a service call that times out (``service_timeout_s``) or a
 trial without samples gives a ``failed`` episode result (the optimizer's failure policy
@@ -75,6 +77,13 @@ PARAMS = [
         1.0,
         "Longest trial in seconds (it ends earlier when declared done).",
         float_range=(0.001, 86_400.0),
+    ),
+    Param(
+        "trial_samples",
+        0,
+        "End the trial after this many score samples (0: no count); fewer by "
+        "trial_duration_s fail the trial. Exact even when samples and done race.",
+        int_range=(0, 10_000_000),
     ),
     Param("done_topic", "", "Topic that ends the trial (empty: none)."),
     Param(
@@ -401,7 +410,10 @@ class ParamBridgeNode(FollowerNode):
         self.phase = "ready"
         samples = self.window.count
         score = self.window.close()
-        if score is None:
+        wanted = self.settings["trial_samples"]
+        if wanted and samples < wanted:
+            self._fail(cand, f"only {samples} of {wanted} score samples by the end of the trial")
+        elif score is None:
             topic = self.settings["score_topic"]
             self._fail(cand, f"no finite score from {samples} samples on {topic!r}")
             return
@@ -430,11 +442,17 @@ class ParamBridgeNode(FollowerNode):
         self._pub.publish(result.encode())
 
     # ------------------------------------------------------------------ trial inputs
+    def _full(self) -> bool:
+        wanted = self.settings["trial_samples"]
+        return bool(wanted) and self.window.count >= wanted
+
     def _on_score(self, msg: Float64) -> None:
-        if not self.window.open:
+        if not self.window.open or self._full():
             self.counters["scores_outside_trial"] += 1
         elif not self.window.add(float(msg.data)):
             self.drop("non_finite", f"score sample {msg.data!r}")
+        elif self._full():
+            self._done_flag = True
 
     def _trial_done(self, source: str) -> bool:
         if not self.window.open:
