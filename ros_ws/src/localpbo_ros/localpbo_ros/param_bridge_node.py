@@ -413,7 +413,8 @@ class ParamBridgeNode(FollowerNode):
         wanted = self.settings["trial_samples"]
         if wanted and samples < wanted:
             self._fail(cand, f"only {samples} of {wanted} score samples by the end of the trial")
-        elif score is None:
+            return
+        if score is None:
             topic = self.settings["score_topic"]
             self._fail(cand, f"no finite score from {samples} samples on {topic!r}")
             return
