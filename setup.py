@@ -2,7 +2,8 @@
 
 - `sims/` installs under the import name `localpbo_sims` (a bare `sims` would collide with an
   unrelated PyPI package);
-- `ros_ws/src/localpbo_ros/localpbo_ros` (the nodes) installs as `localpbo_ros` too.
+- `ros_ws/src/localpbo_ros/localpbo_ros` (the nodes) installs as `localpbo_ros` too, and
+  `ros_ws/src/localpbo_examples/localpbo_examples` (the worked example) as `localpbo_examples`.
 Everything else is declared in pyproject.toml.
 """
 
@@ -16,10 +17,16 @@ packages += ["localpbo_sims"] + [f"localpbo_sims.{name}" for name in find_packag
 # importable from this install, so `localpbo run` and the tests use the very same code.
 ROS_PKG = "ros_ws/src/localpbo_ros/localpbo_ros"
 packages += ["localpbo_ros", "localpbo_ros.benchmarks"]
+EXAMPLES_PKG = "ros_ws/src/localpbo_examples/localpbo_examples"
+packages += ["localpbo_examples"]
 
 setup(
     packages=packages,
-    package_dir={"localpbo_sims": "sims", "localpbo_ros": ROS_PKG},
+    package_dir={
+        "localpbo_sims": "sims",
+        "localpbo_ros": ROS_PKG,
+        "localpbo_examples": EXAMPLES_PKG,
+    },
     package_data={
         "localpbo_sims": ["data/ars/*.npz", "data/ars/LICENSE", "data/ars/README.md"],
         "localpbo_ros": ["localhost_only.xml"],

@@ -55,6 +55,14 @@ class Harness:
     def publish(self, spec: TopicSpec, msg: object) -> None:
         self.publisher(spec).publish(msg)
 
+    def publish_msg(self, topic: str, msg: Any) -> None:
+        """Publish on any topic (reliable, depth 100; waits once for a subscriber)."""
+        if topic not in self._pubs:
+            pub = self.probe.create_publisher(type(msg), topic, 100)
+            self._pubs[topic] = pub
+            self.spin_until(lambda: pub.get_subscription_count() > 0, 5.0)
+        self._pubs[topic].publish(msg)
+
     def spin_until(self, pred: Callable[[], bool], timeout: float) -> bool:
         end = time.monotonic() + timeout
         while not pred():

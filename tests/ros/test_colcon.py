@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-EXES = ("optimizer_node", "sim_node", "oracle_node", "recorder_node")
+EXES = ("optimizer_node", "sim_node", "oracle_node", "recorder_node", "param_bridge_node")
+EXAMPLE_EXES = ("pid_controller_node",)
 
 
 @pytest.fixture(scope="module")
@@ -80,6 +81,16 @@ def test_layout(install: Path) -> None:
     assert Path(out.stdout.strip().splitlines()[-1]) == pkg
 
 
+def test_example_package_layout(install: Path) -> None:
+    pkg = install / "localpbo_examples"
+    assert (pkg / "share/ament_index/resource_index/packages/localpbo_examples").is_file()
+    assert (pkg / "share/localpbo_examples/package.xml").is_file()
+    assert (pkg / "share/localpbo_examples/config/pid_space.yaml").is_file()
+    for exe in EXAMPLE_EXES:
+        path = pkg / "lib/localpbo_examples" / exe
+        assert path.is_file() and os.access(path, os.X_OK)
+
+
 def test_bad_parameter_refused_by_executable(install: Path) -> None:
     exe = install / "localpbo_ros/lib/localpbo_ros/optimizer_node"
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
@@ -94,13 +105,20 @@ def test_bad_parameter_refused_by_executable(install: Path) -> None:
     assert "invalid parameter 'budget'" in out.stderr
 
 
-@pytest.mark.parametrize("exe", EXES)
-def test_executable_starts_and_stops_cleanly(install: Path, exe: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("package", "exe"),
+    [("localpbo_ros", exe) for exe in EXES] + [("localpbo_examples", e) for e in EXAMPLE_EXES],
+)
+def test_executable_starts_and_stops_cleanly(
+    install: Path, package: str, exe: str, tmp_path: Path
+) -> None:
     args = {
         "optimizer_node": "-p algorithm:=sobol -p min_subscribers:=1",
         "recorder_node": f"-p path:={tmp_path / 'rec.mcap'}",
+        "param_bridge_node": "-p target_node:=/nobody",
+        "pid_controller_node": "-p kp:=2.0",
     }.get(exe, "-p run_id:=smoke")
-    path = install / "localpbo_ros/lib/localpbo_ros" / exe
+    path = install / package / "lib" / package / exe
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}
     proc = subprocess.Popen(
         sourced(install, f"{path} --ros-args {args}"),

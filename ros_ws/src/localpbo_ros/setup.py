@@ -24,6 +24,7 @@ setup(
             f"sim_node = {PACKAGE}.sim_node:main",
             f"oracle_node = {PACKAGE}.oracle_node:main",
             f"recorder_node = {PACKAGE}.recorder_node:main",
+            f"param_bridge_node = {PACKAGE}.param_bridge_node:main",
         ],
     },
 )

@@ -69,6 +69,31 @@ def add_subcommands(subparsers: Any) -> None:
         metavar="JSON",
         help='e.g. \'{"episode_steps": 200, "value_range": 100}\'',
     )
+    run.add_argument(
+        "--space",
+        default="",
+        metavar="FILE",
+        help="tune the parameters a space file (YAML) lists instead of --task; needs --bridge "
+        "or --example-controller",
+    )
+    run.add_argument(
+        "--bridge",
+        type=_json_object,
+        default=None,
+        metavar="JSON",
+        help="evaluate on a running controller node through its parameters (param_bridge_node "
+        'parameters), e.g. \'{"target_node": "/my_controller", "score_topic": "/cost"}\'',
+    )
+    run.add_argument(
+        "--example-controller",
+        type=_json_object,
+        nargs="?",
+        const="{}",
+        default=None,
+        metavar="JSON",
+        help="start the worked example's pid_controller_node in this process (optionally with "
+        "its parameters as JSON) and bridge to it",
+    )
     run.add_argument("--failure-policy", choices=("retry", "stop"), default="retry")
     run.add_argument("--out", default="runs", help="directory for the bag")
     run.add_argument("--bag", default=None, help="bag path (default OUT/RUN_ID.mcap)")
@@ -120,6 +145,7 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
         "algorithm_options": args.algorithm_options,
         "task_options": args.task_options,
         "failure_policy": args.failure_policy,
+        "space": args.space,
     }
 
 
@@ -153,8 +179,19 @@ def cmd_run(args: argparse.Namespace) -> int:
                 bar.n = used
                 bar.refresh()
 
+    bridge, controllers = _bridge_of(args)
+    if args.space and bridge is None and args.resume is None:
+        print("localpbo run: --space needs --bridge or --example-controller", file=sys.stderr)
+        return EXIT_USAGE
     try:
-        summary = run_suite(settings, bag, resume=args.resume, on_progress=progress)
+        summary = run_suite(
+            settings,
+            bag,
+            resume=args.resume,
+            on_progress=progress,
+            bridge=bridge,
+            controllers=controllers,
+        )
     except ParameterError as exc:
         print(f"localpbo run: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -163,6 +200,22 @@ def cmd_run(args: argparse.Namespace) -> int:
             bar.close()
     print(summary.format())
     return EXIT_OK if summary.state == "done" else EXIT_RUN_FAILED
+
+
+def _bridge_of(args: argparse.Namespace) -> tuple[dict[str, Any] | None, list[Any]]:
+    """Bridge parameters and in-process controller factories from ``run`` arguments."""
+    bridge = None if args.bridge is None else dict(json.loads(args.bridge))
+    if args.example_controller is None:
+        return bridge, []
+    from localpbo_examples.pid_controller_node import BRIDGE_SETTINGS, PidControllerNode
+    from rclpy.context import Context
+
+    overrides = dict(json.loads(args.example_controller))
+
+    def controller(ctx: Context) -> Any:
+        return PidControllerNode(context=ctx, overrides=overrides)
+
+    return {**BRIDGE_SETTINGS, **(bridge or {})}, [controller]
 
 
 def cmd_replay(args: argparse.Namespace) -> int:

@@ -17,7 +17,15 @@ Run-config ``options`` layout::
     {"optimizer": {<algorithm options>, "initial_design": int},
      "task": {<problem options, e.g. episode_steps, value_range>},
      "oracle": {"noise_fraction": float},
-     "failure": {"policy": "retry" | "stop", "max_retries": int}}
+     "failure": {"policy": "retry" | "stop", "max_retries": int},
+     "space": {"name", "parameters": [{"name", "lower", "upper", "log", "initial", "unit",
+               "description"}], "value_range"}}            # only in space runs
+
+A space run (``localpbo run --space FILE``, optimizer parameter ``space``) tunes the user's
+own parameters (:class:`~localpbo_core.space.ParameterSpace`): its task is ``space:<name>``,
+the ``space`` section holds the whole space (names, units, scales), so a bag explains itself
+and :func:`problem_of` rebuilds the run from the config alone; configs without the section
+(older bags, registered tasks) build the registered task as before.
 """
 
 from __future__ import annotations
@@ -30,18 +38,19 @@ import numpy as np
 
 from localpbo_core.optimizers.base import Candidate
 from localpbo_core.problems import Problem
-from localpbo_core.session import Answer, DuelRequest, Reason, Session, Verdict
+from localpbo_core.session import Answer, DuelRequest, Reason, Session, Verdict, build_problem
 from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
     RunSettings,
     SettingError,
 )
+from localpbo_core.space import ParameterSpace, parse_space
 from localpbo_msgs_py import CandidateMsg, DuelOutcome, Incumbent, RunConfig
 from localpbo_msgs_py import DuelRequest as DuelRequestMsg
 from localpbo_msgs_py.records import OutcomeKind
 
-OPTION_SECTIONS = ("optimizer", "task", "oracle", "failure")
+OPTION_SECTIONS = ("optimizer", "task", "oracle", "failure", "space")
 FAILURE_POLICIES = ("retry", "stop")
 DEFAULT_FAILURE_POLICY = "retry"
 DEFAULT_MAX_RETRIES = 2
@@ -71,13 +80,40 @@ def settings_of(config: RunConfig) -> RunSettings:
     )
 
 
+def space_of(config: RunConfig) -> ParameterSpace | None:
+    """The parameter space of a space run (None for a registered task).
+
+    Raises:
+        SettingError: the section is malformed or does not match the config's task and dim.
+    """
+    if "space" not in config.options:
+        return None
+    space = parse_space(config.options["space"])
+    if config.task != space.name or config.dim != space.dim:
+        raise SettingError(
+            "options.space", f"describes {space.name} ({space.dim}-D), config {config.task}"
+        )
+    return space
+
+
+def problem_of(config: RunConfig) -> Problem:
+    """The problem a run config describes: its parameter space, or the registered task."""
+    space = space_of(config)
+    return build_problem(settings_of(config)) if space is None else space
+
+
 def task_box(problem: Problem) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """θ box in task units: ``to_native`` of the unit cube's corners.
+
+    A parameter space gives its bounds (its log-scaled coordinates are not affine, but still
+    map the unit cube onto the box, monotonically).
 
     Raises:
         SettingError: ``to_native`` is not affine per coordinate (the box would not describe
             the map).
     """
+    if isinstance(problem, ParameterSpace):
+        return problem.lower, problem.upper
     lo = np.asarray(problem.to_native(np.zeros(problem.dim)), dtype=np.float64)
     hi = np.asarray(problem.to_native(np.ones(problem.dim)), dtype=np.float64)
     mid = np.asarray(problem.to_native(np.full(problem.dim, 0.5)), dtype=np.float64)
@@ -93,8 +129,13 @@ def make_run_config(
     failure_policy: str = DEFAULT_FAILURE_POLICY,
     max_retries: int = DEFAULT_MAX_RETRIES,
     session: Session | None = None,
+    space: ParameterSpace | None = None,
 ) -> RunConfig:
     """The run config of ``settings``, validated by building the run once.
+
+    With ``space`` the run tunes it (task ``space:<name>``, any ``settings.problem`` and
+    problem options are replaced); its initial values become the optimizer's ``warm_start``
+    unless the settings give one.
 
     Raises:
         SettingError: naming the refused setting (``failure_policy``, ``max_retries`` or a
@@ -104,6 +145,9 @@ def make_run_config(
         raise SettingError("failure_policy", f"{failure_policy!r} is not one of {FAILURE_POLICIES}")
     if isinstance(max_retries, bool) or not isinstance(max_retries, int) or max_retries < 0:
         raise SettingError("max_retries", f"must be an integer >= 0, got {max_retries!r}")
+    if space is not None:
+        settings = space_settings(settings, space)
+        session = session or Session(settings, space)
     session = session or Session(settings)
     lower, upper = task_box(session.problem)
     options = {
@@ -112,6 +156,8 @@ def make_run_config(
         "oracle": {"noise_fraction": settings.noise_fraction},
         "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
     }
+    if space is not None:
+        options["space"] = space.to_dict()
     return RunConfig(
         run_id,
         settings.algorithm,
@@ -123,6 +169,16 @@ def make_run_config(
         session.budget,
         options,
     )
+
+
+def space_settings(settings: RunSettings, space: ParameterSpace) -> RunSettings:
+    """``settings`` for a run over ``space``: task ``space:<name>``, no task options, and the
+    space's initial values as ``warm_start`` (unless one is given)."""
+    options = dict(settings.optimizer_options)
+    warm = space.warm_start()
+    if warm is not None and "warm_start" not in options:
+        options["warm_start"] = list(warm)
+    return settings.replace(problem=space.name, problem_options={}, optimizer_options=options)
 
 
 def answer_of(outcome: DuelOutcome) -> Answer:
@@ -157,7 +213,9 @@ class Driver:
 
     def __init__(self, config: RunConfig, problem: Problem | None = None) -> None:
         self.config = config
-        self.session = Session(settings_of(config), problem)
+        self.session = Session(
+            settings_of(config), problem if problem is not None else problem_of(config)
+        )
         self.accepted: list[DuelOutcome] = []
         if self.session.problem.dim != config.dim:
             raise SettingError(

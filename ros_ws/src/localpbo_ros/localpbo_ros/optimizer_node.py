@@ -38,6 +38,7 @@ from localpbo_core.settings import (
     RunSettings,
     SettingError,
 )
+from localpbo_core.space import load_space
 from localpbo_msgs_py import DecodeError, DuelOutcome, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, INCUMBENT, RUN_CONFIG
 from localpbo_ros.base import SuiteNode
@@ -49,6 +50,7 @@ from localpbo_ros.driver import (
     make_run_config,
     rebuild,
     settings_of,
+    space_of,
 )
 from localpbo_ros.params import INT_MAX, Param, ParameterError
 from localpbo_ros.summary import RunSummary
@@ -73,6 +75,12 @@ PARAMS = [
         "{}",
         'Task options as a JSON object, e.g. {"episode_steps": 200}.',
         json_object=True,
+    ),
+    Param(
+        "space",
+        "",
+        "Parameter space file (YAML) to tune instead of task, or the space inline as JSON; "
+        "candidates are then the space's parameters in their units.",
     ),
     Param(
         "budget",
@@ -146,6 +154,7 @@ PARAMETER_OF_SETTING = {
     "failure_policy": "failure_policy",
     "max_retries": "max_retries",
     "run_id": "run_id",
+    "space": "space",
 }
 """The ROS parameter that sets each run setting (``SettingError.field`` up to its first dot)."""
 
@@ -153,6 +162,7 @@ PARAMETER_OF_SETTING = {
 def config_from_settings(s: dict[str, Any]) -> RunConfig:
     """The run config the parameters describe; ParameterError names the bad parameter."""
     try:
+        space = load_space(s["space"]) if s["space"] else None
         settings = RunSettings(
             algorithm=s["algorithm"],
             problem=s["task"],
@@ -168,6 +178,7 @@ def config_from_settings(s: dict[str, Any]) -> RunConfig:
             settings,
             failure_policy=s["failure_policy"],
             max_retries=s["max_retries"],
+            space=space,
         )
     except SettingError as exc:
         name = PARAMETER_OF_SETTING.get(exc.field.split(".", 1)[0], "algorithm_options")
@@ -181,6 +192,10 @@ def settings_from_config(config: RunConfig) -> dict[str, Any]:
     """Parameter values that reproduce ``config`` (used by ``run --resume``)."""
     settings = settings_of(config)
     failure = config.options.get("failure", {})
+    space = space_of(config)
+    extra: dict[str, Any] = {}
+    if space is not None:  # the recorded space inline; its warm start is already an option
+        extra = {"space": json.dumps(space.to_dict()), "task": DEFAULT_PROBLEM}
     return {
         "run_id": config.run_id,
         "algorithm": settings.algorithm,
@@ -193,6 +208,7 @@ def settings_from_config(config: RunConfig) -> dict[str, Any]:
         "noise_fraction": float(settings.noise_fraction),
         "failure_policy": failure.get("policy", DEFAULT_FAILURE_POLICY),
         "max_retries": int(failure.get("max_retries", DEFAULT_MAX_RETRIES)),
+        **extra,
     }
 
 

@@ -21,11 +21,10 @@ from typing import Any
 from rclpy.context import Context
 
 from localpbo_core.problems import DuelOracle
-from localpbo_core.session import build_problem
 from localpbo_msgs_py import DecodeError, DuelOutcome, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.records import EpisodeStatus
 from localpbo_msgs_py.topics import DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
-from localpbo_ros.driver import settings_of
+from localpbo_ros.driver import problem_of, settings_of
 from localpbo_ros.follower import FollowerNode
 
 
@@ -75,7 +74,7 @@ class OracleNode(FollowerNode):
     def adopt(self, config: RunConfig) -> None:
         """Build the run's oracle (the task's value range scales the noise)."""
         settings = settings_of(config)
-        self._oracle = DuelOracle(build_problem(settings), settings.noise_fraction, settings.seed)
+        self._oracle = DuelOracle(problem_of(config), settings.noise_fraction, settings.seed)
 
     def _reason(self, err: DecodeError) -> str:
         return err.reason.value

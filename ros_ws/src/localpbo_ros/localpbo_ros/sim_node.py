@@ -22,10 +22,10 @@ import numpy as np
 from rclpy.context import Context
 
 from localpbo_core.seeds import episode_seed
-from localpbo_core.session import build_problem, evaluate_native
+from localpbo_core.session import evaluate_native
 from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
-from localpbo_ros.driver import settings_of
+from localpbo_ros.driver import problem_of
 from localpbo_ros.follower import FollowerNode
 
 Evaluator = Callable[[RunConfig, int, np.ndarray], float]
@@ -63,7 +63,7 @@ class SimNode(FollowerNode):
     def adopt(self, config: RunConfig) -> None:
         """Build the task of the run (unless an evaluator was given)."""
         if self._evaluator is None:
-            self._problem = build_problem(settings_of(config))
+            self._problem = problem_of(config)
             if self._problem.dim != config.dim:
                 raise ValueError(f"dim: task has {self._problem.dim}, config {config.dim}")
 

@@ -5,6 +5,11 @@ and one ``SingleThreadedExecutor`` driven from this thread. The optimizer starts
 recorder is matched with the simulator's and oracle's publishers and the simulator, oracle
 and recorder subscribe to its topics, so the bag holds the whole exchange.
 
+Space runs (``bridge=``): ``param_bridge_node`` replaces the simulator and evaluates the
+candidates on a controller node, either started in this process (``controllers=``, e.g. the
+worked example; nothing leaves the process) or running elsewhere on this host (then the
+process uses the executables' host-only DDS scope so it can reach it).
+
 Resume (``resume=BAG``): the old bag is copied into the new one first (original times), the
 optimizer is rebuilt by re-feeding the recorded outcomes (``driver.rebuild``), and the run
 continues with the first unanswered duel, so every duel appears exactly once.
@@ -14,7 +19,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -27,9 +32,10 @@ from rclpy.logging import LoggingSeverity
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
-from localpbo_ros.dds import in_process_scope
+from localpbo_ros.dds import host_scope, in_process_scope
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
+from localpbo_ros.param_bridge_node import ParamBridgeNode
 from localpbo_ros.params import ParameterError
 from localpbo_ros.recorder_node import RecorderNode
 from localpbo_ros.sim_node import Evaluator, SimNode
@@ -45,6 +51,8 @@ def run_suite(
     evaluator: Evaluator | None = None,
     on_progress: Callable[[int, int], None] | None = None,
     timeout_s: float | None = None,
+    bridge: dict[str, Any] | None = None,
+    controllers: Sequence[Callable[[Context], Any]] = (),
 ) -> RunSummary:
     """Run optimizer, simulator, oracle (and recorder) until the budget is spent.
 
@@ -57,11 +65,18 @@ def run_suite(
         evaluator: replaces the simulator's episode (tests).
         on_progress: called with (evaluations used, budget) after each spin.
         timeout_s: give up (state ``timeout``) after this many seconds.
+        bridge: ``param_bridge_node`` parameters: evaluate on a controller node through its
+            parameters instead of simulating (a space run: ``settings["space"]``).
+        controllers: node factories (given the context) started in this process first, e.g.
+            the worked example's controller.
 
     Raises:
         ParameterError: a refused setting (named).
     """
-    in_process_scope()
+    if bridge is not None and not controllers:
+        host_scope()  # the controller runs in another process on this host
+    else:
+        in_process_scope()
     start = time.monotonic()
     outcomes: tuple[Any, ...] = ()
     settings = dict(settings)
@@ -83,7 +98,12 @@ def run_suite(
             if resume is not None:
                 copy_into(resume, writer)
             nodes.append(RecorderNode(context=ctx, writer=writer))
-        nodes.append(SimNode(context=ctx, evaluator=evaluator))
+        nodes.extend(factory(ctx) for factory in controllers)
+        if bridge is not None:
+            evaluator_node: Any = ParamBridgeNode(context=ctx, overrides=bridge)
+        else:
+            evaluator_node = SimNode(context=ctx, evaluator=evaluator)
+        nodes.append(evaluator_node)
         oracle = OracleNode(context=ctx)
         nodes.append(oracle)
         for node in nodes:
@@ -127,6 +147,9 @@ def run_suite(
             first_candidate_return=oracle.episode_return(0),
         )
     finally:
+        for node in nodes:
+            if isinstance(node, ParamBridgeNode):
+                node.close()  # the controller gets its original parameters back
         for node in nodes:
             executor.remove_node(node)
             node.destroy_node()

@@ -1,0 +1,25 @@
+"""ament_python package: the worked example's executables land in lib/localpbo_examples/."""
+
+from setuptools import setup
+
+PACKAGE = "localpbo_examples"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=[PACKAGE],
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml", "README.md"]),
+        (f"share/{PACKAGE}/config", ["config/pid_space.yaml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    description="Worked example for localpbo: a PID controller tuned through its parameters.",
+    license="MIT",
+    entry_points={
+        "console_scripts": [
+            f"pid_controller_node = {PACKAGE}.pid_controller_node:main",
+        ],
+    },
+)
