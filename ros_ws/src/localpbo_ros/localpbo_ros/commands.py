@@ -9,6 +9,7 @@ bench --help`` stays free of rclpy); each command imports what it needs when it 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
