@@ -13,10 +13,6 @@ from localpbo_core.experiments.spec import SPEC_DIR, validate_runs
 from localpbo_core.settings import SettingError
 
 BUNDLED = sorted(p.stem for p in SPEC_DIR.glob("*.yaml"))
-PENDING = {
-    "pending_prefsqp_ev": "algorithms[0].options.line_search",
-    "pending_turpbo_ei": "algorithms[0].options.acquisition",
-}
 GOOD = {
     "schema": "localpbo/experiment/v1",
     "name": "t",
@@ -43,7 +39,7 @@ def test_every_paper_result_has_a_spec() -> None:
         assert name in BUNDLED
 
 
-@pytest.mark.parametrize("name", [n for n in BUNDLED if n not in PENDING])
+@pytest.mark.parametrize("name", BUNDLED)
 def test_bundled_specs_parse(name: str) -> None:
     spec = parse_spec(yaml.safe_load((SPEC_DIR / f"{name}.yaml").read_text()))
     assert spec.name == name
@@ -51,16 +47,29 @@ def test_bundled_specs_parse(name: str) -> None:
     assert len(ids) == len(set(ids))
 
 
-@pytest.mark.parametrize("name", ["synthetic", "ablation_qeubo_batch", "tiny", "policy_warm_start"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "synthetic",
+        "ablation_qeubo_batch",
+        "ablation_turpbo_acquisition",
+        "ablation_prefsqp_line_search",
+        "tiny",
+        "policy_warm_start",
+    ],
+)
 def test_bundled_specs_validate(name: str) -> None:
     validate_runs(load_spec(name, validate=False))
 
 
-@pytest.mark.parametrize("name", sorted(PENDING))
-def test_pending_variants_are_refused_today(name: str) -> None:
-    with pytest.raises(SettingError) as info:
-        load_spec(name)
-    assert info.value.field == PENDING[name]
+def test_ablations_carry_the_ei_and_ev_variants() -> None:
+    labels = {
+        name: {a.label: a.options for a in load_spec(name, validate=False).algorithms}
+        for name in ("ablation_turpbo_acquisition", "ablation_prefsqp_line_search")
+    }
+    assert labels["ablation_turpbo_acquisition"]["turpbo_ei"] == {"acquisition": "ei"}
+    assert labels["ablation_prefsqp_line_search"]["prefsqp_ev"] == {"subproblem": "ev"}
+    assert not any(n.startswith("pending") for n in BUNDLED)
 
 
 def test_policy_warm_start_is_best_of_5d_then_one_random() -> None:

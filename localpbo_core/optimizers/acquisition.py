@@ -8,6 +8,10 @@
   ``s^2 = v + v* - 2 c``, ``z = (m - m*) / s``;
   and a fixed-base-sample Monte Carlo qEUBO for q > 1:
   ``qEUBO(X) = E[max(f(x*), f(x_1), ..., f(x_q))]`` with ``f = m + chol(C) Z``.
+* Expected improvement of the latent utility over the posterior mean at the incumbent
+  (TuRPBO's EI ablation, paper App. D.7), analytic for q = 1:
+  ``EI(x) = E[max(f(x) - m*, 0)] = (m - m*) Phi(z) + s phi(z)``, ``z = (m - m*) / s``,
+  ``m = mu(x)``, ``s^2 = var f(x)``, ``m* = mu(x*)`` (a number, not a random variable).
 """
 
 from __future__ import annotations
@@ -44,6 +48,18 @@ def eubo_from_moments(mean: Tensor, cov: Tensor) -> Tensor:
     cdf = 0.5 * (1.0 + torch.erf(z / _SQRT2))
     pdf = _INV_SQRT_2PI * torch.exp(-0.5 * z * z)
     return m0 + (m - m0) * cdf + s * pdf
+
+
+def expected_improvement(mean: Tensor, var: Tensor, best: float) -> Tensor:
+    """Analytic EI ``E[max(f(x) - best, 0)] = (m - best) Phi(z) + s phi(z)``, ``z = (m -
+    best) / s``, ``s = sqrt(max(var, 1e-12))``, for a Gaussian ``f(x) ~ N(m, var)``
+    elementwise; differentiable in ``mean`` and ``var``."""
+    s = var.clamp_min(1e-12).sqrt()
+    u = mean - best
+    z = u / s
+    cdf = 0.5 * (1.0 + torch.erf(z / _SQRT2))
+    pdf = _INV_SQRT_2PI * torch.exp(-0.5 * z * z)
+    return u * cdf + s * pdf
 
 
 def qeubo_from_moments(mean: Tensor, cov: Tensor, base_samples: Tensor) -> Tensor:
@@ -248,3 +264,29 @@ def eubo_batch(
     top = np.argsort(-vals, kind="stable")[:num_restarts]
     xs, fs = maximize_in_box(objq, batches[top], lb, ub)
     return xs[int(np.argmax(fs))]
+
+
+def ei_batch(
+    mean_var: Callable[[Tensor], tuple[Tensor, Tensor]],
+    best: float,
+    raw: np.ndarray,
+    lb: np.ndarray,
+    ub: np.ndarray,
+    num_restarts: int = 5,
+    maxiter: int = 200,
+) -> np.ndarray:
+    """Maximise :func:`expected_improvement` over ``best`` in the box: EI at the raw
+    candidates, the best ``num_restarts`` start one multi-start L-BFGS-B run (gradients by
+    autograd through ``mean_var``). ``mean_var`` maps ``(N, d)`` to the marginal posterior
+    means ``(N,)`` and variances ``(N,)``. Returns ``(1, d)``."""
+    raw = np.asarray(raw, dtype=np.float64)
+
+    def obj(x: Tensor) -> Tensor:
+        m, v = mean_var(x)
+        return expected_improvement(m, v, best)
+
+    with torch.no_grad():
+        vals = obj(torch.tensor(raw, dtype=torch.float64)).numpy()
+    top = np.argsort(-vals, kind="stable")[:num_restarts]
+    xs, fs = maximize_in_box(obj, raw[top], lb, ub, maxiter)
+    return xs[int(np.argmax(fs))][None, :]

@@ -12,6 +12,34 @@ search over ``Pi(x_t + eta p)``, ``eta`` on a grid of 100 points in ``[0, 1]``:
 * ``"eubo"``: argmax of EUBO of each grid point against ``x_t`` under the joint Laplace
   posterior (App. D.7 ablation).
 
+Subproblem (``subproblem`` option):
+
+* ``"newton"`` (default): the Newton subproblem of Sec. 5.2 (eqs. (18)-(19)), solved in
+  closed form as above.
+* ``"ev"`` (App. D.7 ablation): the analogue of the uncertainty-aware subproblem of BayeSQP
+  (Paul Brunzema, Sebastian Trimpe, *BayeSQP: Bayesian Optimization through Sequential
+  Quadratic Programming*, NeurIPS 2025; arXiv:2602.03232). BayeSQP replaces the SQP model
+  ``f(x) + grad f(x)^T p`` by a quantile of its Gaussian posterior plus the quadratic term,
+  a second-order cone program over the box. With preferences only differences of the
+  utility are observable, so we take the predicted improvement ``f(x + p) - f(x) ~=
+  grad f(x)^T p + 1/2 p^T H~ p``; under the pairwise-GP posterior ``grad f(x) ~ N(g,
+  Sigma_11(x))`` (eq. (15), :meth:`Surrogate.gradient_covariance`), so the improvement has
+  mean ``g^T p + 1/2 p^T H~ p`` and standard deviation ``sqrt(p^T Sigma_11 p)`` (the Hessian
+  enters at its eigenvalue-modified posterior mean). ``p`` maximises its lower
+  ``ev_delta``-quantile over the box::
+
+      max_p  g^T p + 1/2 p^T H~ p - kappa sqrt(p^T Sigma_11 p)
+      s.t.   0 <= x + p <= 1,           kappa = Phi^{-1}(1 - ev_delta).
+
+  ``H~`` is negative definite and the square-root term convex, so the objective is concave
+  and the maximiser unique. ``ev_delta = 0.5`` (``kappa = 0``) is the pure expected value of
+  the quadratic model (the expectation of a model linear in ``g`` is the model at the
+  posterior mean), i.e. the box-constrained Newton subproblem; the default 0.2 is BayeSQP's
+  default ``delta_f``. A large gradient uncertainty shortens the step (and gives ``p = 0``
+  when ``kappa ||Sigma_11^{1/2} u|| >= g^T u`` in every feasible direction ``u``: no step
+  with a confident predicted improvement). Solved by L-BFGS-B on the box from the clipped
+  Newton step and from a short clipped gradient step (see :func:`ev_subproblem`).
+
 The chosen point is the next iterate (evaluated with the next ask, see
 :mod:`.local_phase`). Decisions: eigenvalue modification ``lambda -> -max(|lambda|, floor)``
 with ``floor = eigenvalue_floor * max(max|lambda|, 1e-12)`` (Nocedal & Wright's
@@ -25,6 +53,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import scipy.optimize
+import scipy.stats
 import torch
 
 from localpbo_core.optimizers.acquisition import eubo_from_moments
@@ -35,6 +65,7 @@ from localpbo_core.surrogate import Surrogate
 from localpbo_core.validation import check_choice, check_float, check_int
 
 LINE_SEARCHES = ("thompson", "full", "eubo")
+SUBPROBLEMS = ("newton", "ev")
 _MAX_REJECTION_ROUNDS = 1000
 
 
@@ -53,6 +84,71 @@ def newton_direction(g: np.ndarray, H: np.ndarray, floor: float = 1e-6) -> np.nd
     :func:`negative_definite_modification`; ``g^T p > 0`` whenever ``g != 0``."""
     Ht = negative_definite_modification(H, floor)
     return -np.linalg.solve(Ht, np.asarray(g, dtype=np.float64))
+
+
+def ev_objective(
+    p: np.ndarray, g: np.ndarray, Ht: np.ndarray, sigma: np.ndarray, kappa: float
+) -> float:
+    """``g^T p + 1/2 p^T H~ p - kappa sqrt(p^T Sigma p)`` (module docstring, ``"ev"``)."""
+    p = np.asarray(p, dtype=np.float64)
+    return float(g @ p + 0.5 * p @ Ht @ p - kappa * np.sqrt(max(float(p @ sigma @ p), 0.0)))
+
+
+def ev_subproblem(
+    x: np.ndarray,
+    g: np.ndarray,
+    H: np.ndarray,
+    sigma: np.ndarray,
+    delta: float,
+    floor: float = 1e-6,
+) -> np.ndarray:
+    """Solve the uncertainty-aware subproblem (module docstring, ``"ev"``).
+
+    ``H`` is modified to ``H~`` (:func:`negative_definite_modification`); ``Sigma`` is
+    symmetrised and its negative eigenvalues (round-off) set to 0. The square root is
+    smoothed to ``sqrt(p^T Sigma p + t^2) - t`` with ``t = 1e-9 * (1 + ||Sigma||)`` for
+    L-BFGS-B (an error of at most ``kappa t`` in the objective); starts: the Newton step
+    and the gradient step ``g / ||H~||``, both clipped to the box. The best of the two runs
+    and ``p = 0`` (judged on the exact objective) is returned, so the step never has a worse
+    model value than staying.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    g = np.asarray(g, dtype=np.float64)
+    Ht = negative_definite_modification(H, floor)
+    S = 0.5 * (np.asarray(sigma, dtype=np.float64) + np.asarray(sigma, dtype=np.float64).T)
+    lam, V = np.linalg.eigh(S)
+    S = (V * np.maximum(lam, 0.0)) @ V.T
+    kappa = float(scipy.stats.norm.ppf(1.0 - delta))
+    t = 1e-9 * (1.0 + float(np.max(np.abs(lam))))
+    lo, hi = -x, 1.0 - x
+
+    def neg(p: np.ndarray) -> tuple[float, np.ndarray]:
+        Sp = S @ p
+        r = np.sqrt(max(float(p @ Sp), 0.0) + t * t)
+        val = g @ p + 0.5 * p @ Ht @ p - kappa * (r - t)
+        grad = g + Ht @ p - kappa * Sp / r
+        return -float(val), -grad
+
+    starts = [
+        np.clip(-np.linalg.solve(Ht, g), lo, hi),
+        np.clip(g / max(float(np.max(np.abs(np.linalg.eigvalsh(Ht)))), 1e-300), lo, hi),
+    ]
+    best = np.zeros_like(g)
+    best_val = 0.0
+    for p0 in starts:
+        res = scipy.optimize.minimize(
+            neg,
+            p0,
+            jac=True,
+            method="L-BFGS-B",
+            bounds=scipy.optimize.Bounds(lo, hi),
+            options={"maxiter": 2000, "ftol": 1e-15, "gtol": 1e-12},
+        )
+        p = np.clip(res.x, lo, hi)
+        val = ev_objective(p, g, Ht, S, kappa)
+        if val > best_val:
+            best, best_val = p, val
+    return best
 
 
 def line_search_points(x: np.ndarray, p: np.ndarray, resolution: int = 100) -> np.ndarray:
@@ -92,6 +188,9 @@ class PrefSQP(LocalPhaseOptimizer):
         epsilon: local sampling radius (table: 0.05).
         num_local_samples: M (table: d; None = d).
         line_search: ``"thompson"`` (default), ``"full"`` or ``"eubo"``.
+        subproblem: ``"newton"`` (default) or ``"ev"`` (BayeSQP's uncertainty-aware
+            subproblem on the pairwise-GP posterior; module docstring).
+        ev_delta: quantile level ``delta`` in ``(0, 0.5]`` of ``"ev"`` (default 0.2).
         line_search_resolution: grid size R (table: 100).
         num_features: random features of the Thompson sample path.
         eigenvalue_floor: relative floor of the eigenvalue modification.
@@ -112,6 +211,8 @@ class PrefSQP(LocalPhaseOptimizer):
         epsilon: float = 0.05,
         num_local_samples: int | None = None,
         line_search: str = "thompson",
+        subproblem: str = "newton",
+        ev_delta: float = 0.2,
         line_search_resolution: int = 100,
         num_features: int = 1024,
         eigenvalue_floor: float = 1e-6,
@@ -132,6 +233,10 @@ class PrefSQP(LocalPhaseOptimizer):
             else check_int("num_local_samples", num_local_samples)
         )
         self.line_search = check_choice("line_search", line_search, LINE_SEARCHES)
+        self.subproblem = check_choice("subproblem", subproblem, SUBPROBLEMS)
+        self.ev_delta = check_float(
+            "ev_delta", ev_delta, minimum=0.0, maximum=0.5, minimum_open=True
+        )
         self.line_search_resolution = check_int(
             "line_search_resolution", line_search_resolution, minimum=2
         )
@@ -139,7 +244,7 @@ class PrefSQP(LocalPhaseOptimizer):
         self.eigenvalue_floor = check_float(
             "eigenvalue_floor", eigenvalue_floor, minimum=0.0, maximum=1.0, minimum_open=True
         )
-        #: Newton directions of every completed phase (for inspection and tests).
+        #: Step directions (subproblem solutions) of every completed phase (inspection, tests).
         self.directions: list[np.ndarray] = []
 
     # ------------------------------------------------------------------ queries
@@ -166,8 +271,16 @@ class PrefSQP(LocalPhaseOptimizer):
         x = torch.tensor(self._center_theta, dtype=torch.float64)
         g = surrogate.mean_gradient(x).detach().numpy()
         H = surrogate.mean_hessian(x).detach().numpy()
-        if not (np.all(np.isfinite(g)) and np.all(np.isfinite(H))) or not np.any(g):
+        sigma = (
+            surrogate.gradient_covariance(x).detach().numpy()
+            if self.subproblem == "ev"
+            else np.zeros((self.dim, self.dim))
+        )
+        finite = all(np.all(np.isfinite(a)) for a in (g, H, sigma))
+        if not finite or not np.any(g):
             p = np.zeros(self.dim)
+        elif self.subproblem == "ev":
+            p = ev_subproblem(self._center_theta, g, H, sigma, self.ev_delta, self.eigenvalue_floor)
         else:
             p = newton_direction(g, H, self.eigenvalue_floor)
         self.directions.append(p)

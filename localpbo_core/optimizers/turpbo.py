@@ -3,8 +3,19 @@
 Each iteration: refit the pairwise GP (learned hyperparameters, warm-started from the
 previous fit), build TuRBO's lengthscale-weighted box of side L around the trust-region
 center, select q candidates in the box by Thompson sampling (default; pathwise sample
-paths, TuRBO perturbation masks, 1024 raw samples, 5 L-BFGS-B restarts) or (q)EUBO, and
-duel every candidate against the center. Success iff some candidate wins (App. C.5); the
+paths, TuRBO perturbation masks, 1024 raw samples, 5 L-BFGS-B restarts), (q)EUBO or
+expected improvement (EI, App. D.7 ablation), and duel every candidate against the center.
+
+EI (``acquisition="ei"``): ``EI(x) = E[max(f(x) - mu(x_inc), 0)] = (m - m*) Phi(z) + s
+phi(z)`` with ``m = mu(x)``, ``s^2 = var f(x)`` the marginal Laplace posterior of the latent
+utility (paper Sec. 4), ``z = (m - m*) / s`` and ``m* = mu(x_inc)`` the posterior mean at
+the current incumbent ``x_inc``, the preference-defined best (the king of the hill,
+:attr:`PreferenceOptimizer.incumbent`; it is the trust-region center except after a
+restart). The utility is observed only through duels, so the incumbent's posterior mean
+stands in for the unobserved "best value". EI is maximised in the trust-region box with the
+raw-sample + multi-start L-BFGS-B scheme of the Thompson route (gradients by autograd).
+EI has no batch form here: ``acquisition="ei"`` with ``batch_size > 1`` is refused
+(``SettingError`` on ``batch_size``). Success iff some candidate wins (App. C.5); the
 counters and L follow :class:`~localpbo_core.optimizers.trust_region.TrustRegionState`.
 
 Decisions not fixed by the paper (documented here, in the README and the report):
@@ -28,7 +39,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import torch
 
-from localpbo_core.optimizers.acquisition import eubo_batch, thompson_batch
+from localpbo_core.optimizers.acquisition import ei_batch, eubo_batch, thompson_batch
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
@@ -41,7 +52,7 @@ from localpbo_core.optimizers.trust_region import (
 from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, check_choice, check_int
 
-ACQUISITIONS = ("ts", "qeubo")
+ACQUISITIONS = ("ts", "qeubo", "ei")
 
 
 class TuRPBO(PreferenceOptimizer):
@@ -50,7 +61,8 @@ class TuRPBO(PreferenceOptimizer):
     Args:
         dim, seed, budget, initial_design, warm_start: see ``PreferenceOptimizer``.
         batch_size: q >= 1 candidates per iteration (TuRPBO table: 1).
-        acquisition: ``"ts"`` (Thompson sampling, default) or ``"qeubo"``.
+        acquisition: ``"ts"`` (Thompson sampling, default), ``"qeubo"`` or ``"ei"``
+            (expected improvement over the incumbent's posterior mean; q = 1 only).
         num_raw_samples: raw candidates in the box (table: 1024).
         num_restarts: L-BFGS-B restarts (table: 5).
         num_features: random features per pathwise sample path.
@@ -92,6 +104,8 @@ class TuRPBO(PreferenceOptimizer):
         self.hyperparameter_refit_every = check_int(
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
+        if self.acquisition == "ei" and self.batch_size > 1:
+            raise SettingError("batch_size", "acquisition 'ei' has no batch form; use 1")
         if self.num_restarts > self.num_raw_samples:
             raise SettingError("num_restarts", "must not exceed num_raw_samples")
         self.tr = TrustRegionState(dim=self.dim, batch_size=self.batch_size)
@@ -153,6 +167,16 @@ class TuRPBO(PreferenceOptimizer):
         if self.acquisition == "ts":
             path = surrogate.sample_paths(q, gen, num_features=self.num_features)
             return thompson_batch(path, raw, lb, ub, num_restarts=self.num_restarts)
+        if self.acquisition == "ei":
+            inc = torch.tensor(self._candidates[self._require_incumbent()].theta)
+            with torch.no_grad():
+                best = float(surrogate.mean(inc.to(torch.float64)))
+
+            def mean_var(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+                m, c = surrogate.posterior_mean_cov(x)
+                return m, torch.diagonal(c)
+
+            return ei_batch(mean_var, best, raw, lb, ub, num_restarts=self.num_restarts)
         base = torch.randn(self.num_mc_samples, q + 1, generator=gen, dtype=torch.float64)
         return eubo_batch(
             surrogate.posterior_mean_cov,

@@ -15,6 +15,8 @@ from localpbo_core.optimizers.acquisition import eubo_from_moments
 from localpbo_core.optimizers.prefsqp import (
     PrefSQP,
     ball_samples,
+    ev_objective,
+    ev_subproblem,
     line_search_points,
     negative_definite_modification,
     newton_direction,
@@ -186,6 +188,86 @@ def test_validation_names_the_field() -> None:
         ({"line_search_resolution": 1}, "line_search_resolution"),
         ({"num_local_samples": 0}, "num_local_samples"),
         ({"eigenvalue_floor": 0.0}, "eigenvalue_floor"),
+        ({"subproblem": "socp"}, "subproblem"),
+        ({"ev_delta": 0.0}, "ev_delta"),
+        ({"ev_delta": 0.6}, "ev_delta"),
     ):
         with pytest.raises(ValueError, match=field):
             make_optimizer("prefsqp", 3, **kw)
+
+
+def _random_case(rng: np.random.Generator, d: int) -> tuple[np.ndarray, ...]:
+    A = rng.standard_normal((d, d))
+    B = rng.standard_normal((d, d))
+    return rng.random(d), rng.standard_normal(d), A + A.T, B @ B.T
+
+
+@pytest.mark.parametrize("delta", [0.05, 0.2, 0.5])
+def test_ev_subproblem_beats_a_brute_force_grid(delta: float) -> None:
+    rng = np.random.default_rng(7)
+    kappa = float(scipy.stats.norm.ppf(1 - delta))
+    for _ in range(6):
+        x, g, H, S = _random_case(rng, 2)
+        Ht = negative_definite_modification(H)
+        p = ev_subproblem(x, g, H, S, delta)
+        assert np.all(x + p >= -1e-12) and np.all(x + p <= 1 + 1e-12)
+        # brute force over the feasible box p in [-x, 1 - x], 401 x 401 grid plus p = 0
+        a = np.linspace(-x[0], 1 - x[0], 401)
+        b = np.linspace(-x[1], 1 - x[1], 401)
+        P = np.stack(np.meshgrid(a, b), axis=-1).reshape(-1, 2)
+        quad = np.einsum("ni,ij,nj->n", P, Ht, P)
+        sd = np.sqrt(np.maximum(np.einsum("ni,ij,nj->n", P, S, P), 0.0))
+        grid = P @ g + 0.5 * quad - kappa * sd
+        val = ev_objective(p, g, Ht, S, kappa)
+        assert val >= max(grid.max(), 0.0) - 1e-9
+        # and no grid point is much better: the grid's best is within a grid cell of p
+        assert val - grid.max() < 1e-2 * (1 + abs(val))
+
+
+def test_ev_subproblem_optimality_conditions() -> None:
+    # interior solution with p != 0: g + H~ p - kappa Sigma p / sqrt(p^T Sigma p) = 0
+    g = np.array([0.8, -0.3])
+    H = np.array([[-20.0, 2.0], [2.0, -10.0]])
+    S = np.array([[0.04, 0.01], [0.01, 0.02]])
+    x = np.array([0.5, 0.5])
+    delta = 0.2
+    kappa = float(scipy.stats.norm.ppf(1 - delta))
+    p = ev_subproblem(x, g, H, S, delta)
+    assert np.all(np.abs(p) > 1e-4) and np.all(np.abs(x + p - 0.5) < 0.5)
+    Ht = negative_definite_modification(H)
+    grad = g + Ht @ p - kappa * S @ p / np.sqrt(p @ S @ p)
+    np.testing.assert_allclose(grad, 0.0, atol=1e-6)
+    # kappa = 0 (delta = 0.5): the Newton step when it is interior
+    np.testing.assert_allclose(ev_subproblem(x, g, H, S, 0.5), newton_direction(g, H), atol=1e-8)
+    # uncertainty shortens the step: the model's predicted mean improvement shrinks
+    assert np.linalg.norm(p) < np.linalg.norm(newton_direction(g, H))
+    # overwhelming uncertainty: no step
+    np.testing.assert_array_equal(ev_subproblem(x, g, H, 1e4 * S, delta), np.zeros(2))
+
+
+def test_ev_option_steps_solve_the_subproblem_of_the_phase() -> None:
+    opt = make_optimizer("prefsqp", 2, seed=1, budget=12, subproblem="ev", line_search="full")
+    drive(opt, _quad)
+    sur = opt.surrogate
+    x, p = opt.centers[-2], opt.directions[-1]
+    xt = torch.tensor(x, dtype=torch.float64)
+    g = sur.mean_gradient(xt).detach().numpy()
+    H = sur.mean_hessian(xt).detach().numpy()
+    S = sur.gradient_covariance(xt).detach().numpy()
+    np.testing.assert_allclose(p, ev_subproblem(x, g, H, S, 0.2), atol=1e-10)
+    assert not np.allclose(p, newton_direction(g, H))
+
+
+def test_ev_improves_on_smooth_2d_problem_and_is_deterministic() -> None:
+    gaps = []
+    for seed in range(5):
+        opt = make_optimizer("prefsqp", 2, seed, 22, subproblem="ev")
+        vals = np.array([_quad(t) for t in drive(opt, _quad)])
+        gaps.append((vals.max() - vals[:2].max()) / -vals[:2].max())
+    assert min(gaps) > 0.4 and np.median(gaps) > 0.8, gaps
+    runs = [
+        drive(make_optimizer("prefsqp", 2, seed=s, budget=16, subproblem="ev"), _quad)
+        for s in (4, 4, 5)
+    ]
+    assert all(np.array_equal(a, b) for a, b in zip(runs[0], runs[1], strict=True))
+    assert not all(np.array_equal(a, b) for a, b in zip(runs[0], runs[2], strict=True))

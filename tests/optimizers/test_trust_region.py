@@ -175,7 +175,9 @@ def test_turpbo_finds_a_better_point_with_the_real_surrogate() -> None:
     assert opt.surrogate is not None
 
 
-@pytest.mark.parametrize(("acq", "q"), [("ts", 1), ("ts", 2), ("qeubo", 1), ("qeubo", 2)])
+@pytest.mark.parametrize(
+    ("acq", "q"), [("ts", 1), ("ts", 2), ("qeubo", 1), ("qeubo", 2), ("ei", 1)]
+)
 def test_turpbo_real_surrogate_is_deterministic_and_stays_in_region(acq: str, q: int) -> None:
     runs = []
     for _ in range(2):
@@ -218,3 +220,78 @@ def test_hyperparameter_refit_every_k_holds_them_in_between(
     assert fixed == [False, False, False]
     with pytest.raises(ValueError, match="hyperparameter_refit_every"):
         make_optimizer("turpbo", 2, hyperparameter_refit_every=0)
+
+
+def test_expected_improvement_matches_quadrature() -> None:
+    # brute force: E[max(f - best, 0)] for f ~ N(m, s^2) by adaptive quadrature
+    import scipy.integrate
+    import scipy.stats
+
+    from localpbo_core.optimizers.acquisition import expected_improvement
+
+    for m, s, best in ((0.3, 0.5, 0.1), (-1.0, 0.2, 0.0), (2.0, 1.5, 2.5), (0.0, 1e-3, 0.0)):
+        dens = scipy.stats.norm(m, s).pdf
+        lo, hi = max(best, m - 12 * s), max(best, m + 12 * s)
+        ref = scipy.integrate.quad(lambda t, d=dens, b=best: (t - b) * d(t), lo, hi)[0]
+        ana = float(expected_improvement(torch.tensor(m), torch.tensor(s * s), best))
+        assert ana == pytest.approx(ref, abs=1e-7)
+
+
+def _ei_run() -> tuple[object, np.ndarray]:
+    opt = make_optimizer("turpbo", 2, seed=5, budget=10, acquisition="ei")
+    drive(opt)
+    return opt, np.stack([c.theta for c in opt.history.candidates])
+
+
+def test_ei_gradient_matches_finite_differences_and_argmax_beats_a_grid() -> None:
+    from localpbo_core.optimizers.acquisition import ei_batch, expected_improvement
+
+    opt, _ = _ei_run()
+    sur = opt.surrogate
+    inc = torch.tensor(opt.incumbent.theta, dtype=torch.float64)
+    best = float(sur.mean(inc).detach())
+
+    def ei(x: torch.Tensor) -> torch.Tensor:
+        m, c = sur.posterior_mean_cov(x)
+        return expected_improvement(m, torch.diagonal(c), best)
+
+    rng = np.random.default_rng(0)
+    for x0 in rng.random((4, 2)):
+        x = torch.tensor(x0[None], dtype=torch.float64, requires_grad=True)
+        (g,) = torch.autograd.grad(ei(x).sum(), x)
+        fd = np.zeros(2)
+        for i in range(2):
+            e = np.zeros(2)
+            e[i] = 1e-6
+            with torch.no_grad():
+                hi = float(ei(torch.tensor((x0 + e)[None])))
+                lo = float(ei(torch.tensor((x0 - e)[None])))
+            fd[i] = (hi - lo) / 2e-6
+        np.testing.assert_allclose(g.numpy()[0], fd, rtol=1e-4, atol=1e-8)
+    # the maximiser in a box is at least as good as every point of a fine grid (brute force)
+    lb, ub = np.array([0.2, 0.1]), np.array([0.7, 0.5])
+    raw = lb + (ub - lb) * rng.random((64, 2))
+    xs = ei_batch(
+        lambda x: (sur.posterior_mean_cov(x)[0], torch.diagonal(sur.posterior_mean_cov(x)[1])),
+        best,
+        raw,
+        lb,
+        ub,
+    )
+    assert xs.shape == (1, 2) and np.all(xs >= lb) and np.all(xs <= ub)
+    g1, g2 = np.meshgrid(np.linspace(lb[0], ub[0], 41), np.linspace(lb[1], ub[1], 41))
+    grid = np.column_stack([g1.ravel(), g2.ravel()])
+    with torch.no_grad():
+        grid_vals = np.concatenate([ei(torch.tensor(c)).numpy() for c in np.split(grid, 41)])
+        chosen = float(ei(torch.tensor(xs)))
+    assert chosen >= grid_vals.max() - 1e-6 * max(1.0, abs(grid_vals.max()))
+
+
+def test_ei_improves_and_is_deterministic_and_refuses_batches() -> None:
+    _, a = _ei_run()
+    _, b = _ei_run()
+    np.testing.assert_array_equal(a, b)
+    vals = [-np.sum((t - 0.3) ** 2) for t in a]
+    assert max(vals[2:]) > max(vals[:2])
+    with pytest.raises(ValueError, match="batch_size"):
+        make_optimizer("turpbo", 2, seed=0, budget=10, acquisition="ei", batch_size=2)
