@@ -142,6 +142,7 @@ SYNTHETIC_VALUE_RANGES: dict[str, float] = {
     "hartmann6": 3.0100713839207427,
     "rosenbrock16": 5301422.7366539175,
     "levy32": 655.1910623286794,
+    "styblinskitang32": 1424.4448978762982,
     "styblinskitang64": 1806.4243389462445,
 }
 
@@ -163,18 +164,25 @@ def make_synthetic(name: str) -> SyntheticProblem:
         return SyntheticProblem(
             name, 32, -10.0, 10.0, levy, SYNTHETIC_VALUE_RANGES[name], 0.0, (1.0,) * 32
         )
-    if name == "styblinskitang64":
+    if name in ("styblinskitang32", "styblinskitang64"):
+        dim = int(name.removeprefix("styblinskitang"))
         return SyntheticProblem(
             name,
-            64,
+            dim,
             -5.0,
             5.0,
             styblinski_tang,
             SYNTHETIC_VALUE_RANGES[name],
-            39.166166 * 64,
-            (_ST_ARGMIN,) * 64,
+            39.166166 * dim,
+            (_ST_ARGMIN,) * dim,
         )
     raise ValueError(f"name: unknown synthetic problem {name!r}; valid: {SYNTHETIC_PROBLEMS}")
 
 
-SYNTHETIC_PROBLEMS: tuple[str, ...] = ("hartmann6", "levy32", "rosenbrock16", "styblinskitang64")
+SYNTHETIC_PROBLEMS: tuple[str, ...] = (
+    "hartmann6",
+    "levy32",
+    "rosenbrock16",
+    "styblinskitang32",
+    "styblinskitang64",
+)

@@ -18,6 +18,7 @@ def test_available_problems() -> None:
         "hopper",
         "levy32",
         "rosenbrock16",
+        "styblinskitang32",
         "styblinskitang64",
         "swimmer",
         "walker2d",

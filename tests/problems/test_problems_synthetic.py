@@ -13,6 +13,7 @@ BOTORCH = {
     "hartmann6": (Hartmann, 6),
     "rosenbrock16": (Rosenbrock, 16),
     "levy32": (Levy, 32),
+    "styblinskitang32": (StyblinskiTang, 32),
     "styblinskitang64": (StyblinskiTang, 64),
 }
 
