@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -88,7 +89,9 @@ def _run(
             )
         )
         victim = sims.get(kill) if kill else None
+        stall = time.monotonic() + 120.0  # a guard against a hang, not a timing assertion
         while not opt.finished:
+            assert time.monotonic() < stall, f"run stalled: {dict(opt.counters)}"
             ros.executor.spin_once(timeout_sec=0.01)
             if victim is not None and victim.worker_id in opt.pool.outstanding().values():
                 ros.remove(victim)
