@@ -53,11 +53,13 @@ def _run(
     log: list[tuple[str, int]],
     *,
     kill: str | None = None,
+    leave: bool = False,
     **settings: Any,
 ) -> tuple[OptimizerNode, dict[str, SimNode]]:
     """Recorder, oracle, ``workers`` sim nodes and the optimizer on one context, until the
     run ends. ``kill``: the worker destroyed as soon as it holds an assignment it has not
-    started (its heartbeats stop; its candidate must be taken over)."""
+    started (its heartbeats stop; its candidate must be taken over); with ``leave`` it stops
+    cleanly instead (``close``: it reports ``stopped``)."""
     writer = BagWriter(bag)
     try:
         recorder = ros.add(RecorderNode(context=ros.ctx, writer=writer))
@@ -94,7 +96,14 @@ def _run(
             assert time.monotonic() < stall, f"run stalled: {dict(opt.counters)}"
             ros.executor.spin_once(timeout_sec=0.01)
             if victim is not None and victim.worker_id in opt.pool.outstanding().values():
-                ros.remove(victim)
+                if leave:  # a clean stop: the node says so on its way out
+                    ros.executor.remove_node(victim)
+                    ros.nodes.remove(victim)
+                    victim.close()
+                    ros.spin_for(0.2)
+                    victim.destroy_node()
+                else:
+                    ros.remove(victim)
                 victim = None
             assert len(log) < 200, "runaway"
         ros.spin_for(0.3)
@@ -125,6 +134,8 @@ def test_pool_logic_assigns_frees_and_takes_back() -> None:
     assert [a.candidate_id for a in pool.assign([2], 3.7)] == []
     assert [a.candidate_id for a in pool.assign([2], 3.7, retry=True)] == [2]
     assert pool.assigned == 5
+    pool.heard("a.1", False, 3.8)  # stopping (or failed): heard, but no longer serving
+    assert [a.candidate_id for a in pool.expire(now=3.9)] == [2] and pool.reassigned == 2
 
 
 def test_candidate_worker_field_round_trip_and_old_format() -> None:
@@ -176,3 +187,14 @@ def test_two_workers_same_run_as_one(ros: Harness, tmp_path: Path) -> None:
     assert len({o.duel_id for o in a.outcomes}) == 17
     assert one.summary().incumbent_theta == two.summary().incumbent_theta
     assert {n for n, _ in one_log} == {"sim_0"} and {n for n, _ in two_log} == {"sim_0", "sim_1"}
+
+
+def test_worker_leaving_cleanly_hands_over_at_once(ros: Harness, tmp_path: Path) -> None:
+    log: list[tuple[str, int]] = []
+    # a silent worker would hold its candidate for 10 minutes: only the stop report helps
+    opt, _ = _run(
+        ros, tmp_path / "leave.mcap", 2, log, kill="sim_1", leave=True, worker_timeout_s=600.0
+    )
+    assert opt.state == "done" and opt.counters["reassigned"] >= 1
+    assert sorted(set(cid for _, cid in log)) == list(range(18))
+    assert verify(tmp_path / "leave.mcap").ok

@@ -248,7 +248,11 @@ class ParamBridgeNode(FollowerNode):
         return self._set.call_async(SetParametersAtomically.Request(parameters=params))
 
     def close(self) -> None:
-        """Stopping: set the original parameters back and wait (``service_timeout_s``)."""
+        """Stopping: say so (the optimizer hands this worker's candidate to another one), set
+        the original parameters back and wait (``service_timeout_s``)."""
+        if self.state != "failed":
+            self.state = "stopped"
+            self.publish_status()
         future = self._restore()
         if future is None:
             return

@@ -128,8 +128,10 @@ class WorkerPool:
             self._done[candidate_id] = a.worker if a is not None else ""
 
     def expire(self, now: float) -> list[Assignment]:
-        """Take back the candidates of workers gone silent; the assignments taken back."""
-        gone = [a for a in self._assigned.values() if not self.alive(a.worker, now)]
+        """Take back the candidates of workers gone silent or no longer serving (stopped,
+        failed); the assignments taken back."""
+        live = set(self.live(now))
+        gone = [a for a in self._assigned.values() if a.worker not in live]
         for a in gone:
             del self._assigned[a.candidate_id]
             self.reassigned += 1

@@ -16,7 +16,8 @@ Pool worker (:mod:`localpbo_ros.pool`): the node announces its worker id
 evaluates the candidates assigned to it (``worker=<its id>``) and unassigned ones, and skips
 those assigned to another worker (``candidates_for_others``). The node evaluates in its
 executor's thread, so it sends no heartbeat during an episode: the optimizer's
-``worker_timeout_s`` must exceed the longest episode.
+``worker_timeout_s`` must exceed the longest episode. A worker that stops on a signal reports
+state ``stopped`` on its way out, and its candidate goes to another worker at once.
 """
 
 from __future__ import annotations
@@ -70,6 +71,12 @@ class SimNode(FollowerNode):
     def status_info(self) -> dict[str, str]:
         """The worker id and the candidate being evaluated (empty when idle)."""
         return {WORKER_INFO: self.worker_id, BUSY_INFO: "" if self.busy is None else str(self.busy)}
+
+    def close(self) -> None:
+        """Stopping (SIGINT/SIGTERM): say so, so the optimizer hands this worker's candidate
+        to another worker at once instead of after ``worker_timeout_s``."""
+        self.state = "stopped"
+        self.publish_status()
 
     def reset(self) -> None:
         """Forget the previous run's candidates and results."""
