@@ -198,3 +198,13 @@ def test_worker_leaving_cleanly_hands_over_at_once(ros: Harness, tmp_path: Path)
     assert opt.state == "done" and opt.counters["reassigned"] >= 1
     assert sorted(set(cid for _, cid in log)) == list(range(18))
     assert verify(tmp_path / "leave.mcap").ok
+
+
+def test_pool_depth_spreads_then_queues() -> None:
+    pool = WorkerPool(timeout_s=3.0, depth=2)
+    pool.heard("a.1", True, 0.0)
+    pool.heard("b.2", True, 0.0)
+    got = [(a.candidate_id, a.worker) for a in pool.assign(range(6), now=0.1)]
+    assert got == [(0, "a.1"), (1, "b.2"), (2, "a.1"), (3, "b.2")]
+    pool.result(1, ok=True)
+    assert [(a.candidate_id, a.worker) for a in pool.assign(range(6), 0.2)] == [(4, "b.2")]

@@ -17,9 +17,10 @@ Late joiners: while a step is open, the pending duels' candidates and requests a
 again every ``republish_period_s`` (idempotent for the other nodes).
 
 Pool of evaluators (:mod:`localpbo_ros.pool`): the node hears the workers' status heartbeats
-(``info.worker``) of its run and assigns each candidate to evaluate to one live, idle worker
-(``worker=<id>`` in the candidate message), the next one as soon as the worker's episode result
-arrives; a candidate whose worker is silent for ``worker_timeout_s`` goes to another worker.
+(``info.worker``) of its run and assigns each candidate to evaluate to one live worker with
+room (at most ``worker_queue`` candidates out per worker; ``worker=<id>`` in the candidate
+message), the next one as soon as an episode result frees a place; a candidate whose worker
+is silent for ``worker_timeout_s`` goes to another worker.
 With no worker heard, candidates go out unassigned (anyone evaluates them). ``min_workers``
 holds the start until that many workers are heard. Counters: ``assigned``, ``reassigned``,
 ``workers`` (live now).
@@ -170,6 +171,12 @@ PARAMS = [
         float_range=(0.5, 86_400.0),
     ),
     Param(
+        "worker_queue",
+        2,
+        "Candidates out to one pool worker at a time (1 = the next one only after a result).",
+        int_range=(1, 1000),
+    ),
+    Param(
         "min_workers",
         0,
         "Start once this many pool workers are heard (0 = do not wait).",
@@ -293,7 +300,7 @@ class OptimizerNode(SuiteNode):
         self._pub_candidate = self.publisher(CANDIDATE)
         self._pub_request = self.publisher(DUEL_REQUEST)
         self._pub_incumbent = self.publisher(INCUMBENT)
-        self.pool = WorkerPool(self.settings["worker_timeout_s"])
+        self.pool = WorkerPool(self.settings["worker_timeout_s"], self.settings["worker_queue"])
         self.subscribe(DUEL_OUTCOME, self._on_outcome)
         self.subscribe(STATUS, self._on_status)
         self.subscribe(EPISODE_RESULT, self._on_result)
@@ -360,7 +367,7 @@ class OptimizerNode(SuiteNode):
     def _dispatch(
         self, *, fresh: set[int] | frozenset[int] = frozenset(), again: bool = False
     ) -> None:
-        """Publish candidates of the open step: new assignments to idle workers, the
+        """Publish candidates of the open step: new assignments to workers with room, the
         ``fresh`` ones unassigned while no worker is known, and with ``again`` every pending
         candidate that is assigned or evaluated (to its worker) or, with no worker known,
         unassigned. Candidates of workers gone silent are taken back first."""

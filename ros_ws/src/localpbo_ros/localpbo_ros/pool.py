@@ -53,11 +53,14 @@ class WorkerPool:
     """Assignments of candidates to workers, from heartbeats and results.
 
     Args:
-        timeout_s: a worker silent for this long is gone; its candidate is taken back.
+        timeout_s: a worker silent for this long is gone; its candidates are taken back.
+        depth: candidates out to one worker at a time (more than one saves the round trip
+            between a result and the next candidate; one spreads the work most evenly).
     """
 
-    def __init__(self, timeout_s: float) -> None:
+    def __init__(self, timeout_s: float, depth: int = 1) -> None:
         self.timeout_s = timeout_s
+        self.depth = depth
         self._seen: dict[str, float] = {}
         self._serving: dict[str, bool] = {}
         self._assigned: dict[int, Assignment] = {}
@@ -83,10 +86,17 @@ class WorkerPool:
         """Workers heard within ``timeout_s`` and taking candidates, by id."""
         return sorted(w for w in self._seen if self.alive(w, now) and self._serving[w])
 
+    def load(self, now: float) -> dict[str, int]:
+        """Live worker → its candidates out."""
+        out = dict.fromkeys(self.live(now), 0)
+        for a in self._assigned.values():
+            if a.worker in out:
+                out[a.worker] += 1
+        return out
+
     def idle(self, now: float) -> list[str]:
         """Live workers without an assignment, by id."""
-        busy = {a.worker for a in self._assigned.values()}
-        return [w for w in self.live(now) if w not in busy]
+        return [w for w, n in self.load(now).items() if n == 0]
 
     # ------------------------------------------------------------------ candidates
     def worker_for(self, candidate_id: int) -> str:
@@ -99,18 +109,22 @@ class WorkerPool:
     def assign(
         self, candidate_ids: Iterable[int], now: float, *, retry: bool = False
     ) -> list[Assignment]:
-        """Assign the candidates not yet out or done (in id order) to idle live workers, one
-        each; those whose episode failed only with ``retry`` (the failure policy decides).
-        The new assignments."""
-        idle = self.idle(now)
+        """Assign the candidates not yet out or done (in id order) to live workers with room
+        (fewer than ``depth`` out), each to the least loaded one (ties by id); those whose
+        episode failed only with ``retry`` (the failure policy decides). The new
+        assignments."""
+        load = self.load(now)
         new: list[Assignment] = []
         for cid in sorted(set(candidate_ids)):
-            if not idle:
+            room = [w for w, n in load.items() if n < self.depth]
+            if not room:
                 break
             if cid in self._assigned or cid in self._done or (cid in self._failed and not retry):
                 continue
             self._failed.discard(cid)
-            a = Assignment(cid, idle.pop(0), now)
+            worker = min(room, key=lambda w: (load[w], w))
+            load[worker] += 1
+            a = Assignment(cid, worker, now)
             self._assigned[cid] = a
             self.assigned += 1
             new.append(a)
