@@ -5,12 +5,17 @@ controller can consume the message unchanged. The ids travel in the one layout d
 
     layout.data_offset  = 0
     layout.dim          = [MultiArrayDimension(label=LABEL, size=len(data), stride=len(data))]
-    LABEL (candidate)   = "kind=candidate;run=<run_id>;candidate=<candidate_id>"
+    LABEL (candidate)   = "kind=candidate;run=<run_id>;candidate=<candidate_id>[;worker=<id>]"
     LABEL (incumbent)   = "kind=incumbent;run=<run_id>;candidate=<candidate_id>;duels=<n_duels>"
 
 ``<candidate_id>`` and ``<n_duels>`` are non-negative decimal integers without sign or leading
 zeros. Writers emit the keys in the order shown; readers accept any order but require exactly
-this key set.
+this key set (``worker`` is optional).
+
+``worker`` assigns the candidate to one evaluator of a pool (its worker id, with the run-id
+grammar ``[A-Za-z0-9][A-Za-z0-9_.-]{0,63}``); without it (older messages, a single evaluator)
+any evaluator may take the candidate. Who evaluates never changes the result: the episode seed
+depends only on the run seed and the candidate id.
 """
 
 from __future__ import annotations
@@ -44,8 +49,9 @@ def format_label(pairs: Sequence[tuple[str, str]]) -> str:
     return ";".join(f"{k}={v}" for k, v in pairs)
 
 
-def parse_label(label: str, keys: Sequence[str]) -> dict[str, str]:
-    """Parse a layout label; exactly ``keys`` must be present, each once."""
+def parse_label(label: str, keys: Sequence[str], optional: Sequence[str] = ()) -> dict[str, str]:
+    """Parse a layout label; exactly ``keys`` (and any of ``optional``) must be present, each
+    once."""
     check_cap(len(label), MAX_TEXT, LABEL_FIELD, "characters")
     out: dict[str, str] = {}
     for part in label.split(";"):
@@ -59,7 +65,7 @@ def parse_label(label: str, keys: Sequence[str]) -> dict[str, str]:
         if key in out:
             raise repeated_key(LABEL_FIELD, key)
         out[key] = value
-    require_keys(out, keys, field=LABEL_FIELD)
+    require_keys(out, keys, optional, field=LABEL_FIELD)
     return out
 
 
@@ -81,6 +87,7 @@ def _read_theta(
     lower: Sequence[float] | None,
     upper: Sequence[float] | None,
     max_len: int,
+    optional: Sequence[str] = (),
 ) -> tuple[dict[str, str], tuple[float, ...]]:
     check_type(msg, Float64MultiArray, TYPE_NAME)
     assert isinstance(msg, Float64MultiArray)
@@ -93,7 +100,7 @@ def _read_theta(
         raise FieldError(
             "layout.data_offset", DecodeReason.MALFORMED, f"must be 0, got {msg.layout.data_offset}"
         )
-    fields = parse_label(dims[0].label, keys)
+    fields = parse_label(dims[0].label, keys, optional)
     if fields["kind"] != kind:
         raise FieldError(
             LABEL_FIELD,
@@ -119,24 +126,32 @@ def _read_theta(
 class CandidateMsg:
     """A candidate to evaluate: θ (task units) with its run id and candidate id.
 
-    Topic ``/localpbo/candidate`` (optimizer → simulator / your controller).
+    Topic ``/localpbo/candidate`` (optimizer → simulator / your controller). ``worker`` is
+    the evaluator it is assigned to (empty: anyone).
     """
 
     run_id: str
     candidate_id: int
     theta: tuple[float, ...]
+    worker: str = ""
 
     def __post_init__(self) -> None:
         check_run_id(self.run_id)
         check_id(self.candidate_id, "candidate_id")
         object.__setattr__(self, "theta", check_vector(self.theta, "theta"))
+        if self.worker:
+            check_run_id(self.worker, "worker")
+
+    def assigned_to(self, worker: str) -> CandidateMsg:
+        """The same candidate assigned to ``worker`` (empty: anyone)."""
+        return CandidateMsg(self.run_id, self.candidate_id, self.theta, worker)
 
     def encode(self) -> Float64MultiArray:
         """The ROS message (see module docstring for the layout label)."""
-        label = format_label(
-            [("kind", "candidate"), ("run", self.run_id), ("candidate", str(self.candidate_id))]
-        )
-        return _theta_message(label, self.theta)
+        pairs = [("kind", "candidate"), ("run", self.run_id), ("candidate", str(self.candidate_id))]
+        if self.worker:
+            pairs.append(("worker", self.worker))
+        return _theta_message(format_label(pairs), self.theta)
 
     @classmethod
     def decode(
@@ -160,11 +175,13 @@ class CandidateMsg:
                 lower=lower,
                 upper=upper,
                 max_len=max_len,
+                optional=("worker",),
             )
             run_id = check_run_id(fields["run"], "run")
             check_expected_run(run_id, expected_run_id, "run")
             cid = parse_id(fields["candidate"], "candidate")
-            return cls(run_id, cid, theta)
+            worker = check_run_id(fields["worker"], "worker") if "worker" in fields else ""
+            return cls(run_id, cid, theta, worker)
 
         return guarded("candidate", body)
 

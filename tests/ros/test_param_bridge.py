@@ -25,7 +25,7 @@ from std_srvs.srv import Trigger
 from localpbo_core.settings import RunSettings
 from localpbo_core.space import load_space, parse_space
 from localpbo_core.validation import SettingError
-from localpbo_msgs_py import CandidateMsg, EpisodeResult
+from localpbo_msgs_py import CandidateMsg, EpisodeResult, Status
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT, RUN_CONFIG, STATUS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -332,3 +332,30 @@ def test_target_restored_after_a_failed_run(tmp_path: Path) -> None:
     assert controller.changes and controller.changes[0] != ORIGINAL
     assert controller.final == ORIGINAL
     assert controller.changes[-1] == ORIGINAL
+
+
+def test_bridge_is_a_pool_worker(ros: Any) -> None:
+    results = ros.collect(EPISODE_RESULT)
+    statuses = ros.collect(STATUS)
+    bridge = start_bridge(ros, "gain", score_kind="reward", score_reduce="sum")
+    target = ros.nodes[1]
+    bridge.publish_status()
+    assert ros.spin_until(lambda: len(statuses) > 0, 10)
+    mine = [Status.decode(m) for m in statuses]
+    assert any(s.node == "param_bridge_node" and s.info["worker"] == bridge.worker_id for s in mine)
+    # assigned to another worker: skipped, no trial
+    ros.publish(CANDIDATE, CandidateMsg("br", 0, (2.5,), "sim_node.0000abcd").encode())
+    assert ros.spin_until(lambda: bridge.counters["candidates_for_others"] == 1, 10)
+    assert bridge.phase == "ready" and target.get_parameter("gain").value == 1.0
+    # assigned to this bridge: a trial, reported busy while it runs
+    ros.publish(CANDIDATE, CandidateMsg("br", 1, (2.5,), bridge.worker_id).encode())
+    assert ros.spin_until(lambda: bridge.phase == "trial", 10)
+    assert bridge.status_info()["busy"] == "1"
+    ros.publish_msg("/score", Float64(data=2.0))
+    assert ros.spin_until(lambda: bridge.window.count == 1, 10)
+    ros.publish_msg("/done", Empty())
+    assert ros.spin_until(lambda: len(results) == 1, 10)
+    res = EpisodeResult.decode(results[0])
+    assert isinstance(res, EpisodeResult) and res.candidate_id == 1 and res.episode_return == 2.0
+    assert bridge.status_info()["busy"] == ""
+    bridge.close()

@@ -123,8 +123,12 @@ class SuiteNode(Node):
         """Drop a message its decoder refused, counted by the decoder's reason."""
         self.drop(error.reason.value, str(error))
 
+    def status_info(self) -> dict[str, str]:
+        """Info items of the status message (``info.<name>``); none by default."""
+        return {}
+
     def publish_status(self, level: int = 0, message: str = "") -> None:
-        """Publish state and counters on ``/localpbo/status``."""
+        """Publish state, counters and :meth:`status_info` on ``/localpbo/status``."""
         status = Status(
             self.status_run_id,
             self.get_name(),
@@ -132,7 +136,7 @@ class SuiteNode(Node):
             level,
             message[:4000],
             dict(self.counters),
-            {},
+            self.status_info(),
             self.get_clock().now().nanoseconds,
         )
         self._status_pub.publish(status.encode())

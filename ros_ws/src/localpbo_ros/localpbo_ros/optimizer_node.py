@@ -15,6 +15,15 @@ optimizer never sees a failed duel.
 
 Late joiners: while a step is open, the pending duels' candidates and requests are published
 again every ``republish_period_s`` (idempotent for the other nodes).
+
+Pool of evaluators (:mod:`localpbo_ros.pool`): the node hears the workers' status heartbeats
+(``info.worker``) of its run and assigns each candidate to evaluate to one live worker with
+room (at most ``worker_queue`` candidates out per worker; ``worker=<id>`` in the candidate
+message), the next one as soon as an episode result frees a place; a candidate whose worker
+is silent for ``worker_timeout_s`` goes to another worker.
+With no worker heard, candidates go out unassigned (anyone evaluates them). ``min_workers``
+holds the start until that many workers are heard. Counters: ``assigned``, ``reassigned``,
+``workers`` (live now).
 """
 
 from __future__ import annotations
@@ -39,8 +48,24 @@ from localpbo_core.settings import (
     SettingError,
 )
 from localpbo_core.space import load_space
-from localpbo_msgs_py import DecodeError, DuelOutcome, RunConfig
-from localpbo_msgs_py.topics import CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, INCUMBENT, RUN_CONFIG
+from localpbo_msgs_py import (
+    CandidateMsg,
+    DecodeError,
+    DuelOutcome,
+    EpisodeResult,
+    EpisodeStatus,
+    RunConfig,
+    Status,
+)
+from localpbo_msgs_py.topics import (
+    CANDIDATE,
+    DUEL_OUTCOME,
+    DUEL_REQUEST,
+    EPISODE_RESULT,
+    INCUMBENT,
+    RUN_CONFIG,
+    STATUS,
+)
 from localpbo_ros.base import SuiteNode
 from localpbo_ros.driver import (
     DEFAULT_FAILURE_POLICY,
@@ -53,6 +78,7 @@ from localpbo_ros.driver import (
     space_of,
 )
 from localpbo_ros.params import INT_MAX, Param, ParameterError
+from localpbo_ros.pool import SERVING_STATES, WorkerPool, worker_of
 from localpbo_ros.summary import RunSummary
 
 PARAMS = [
@@ -135,6 +161,25 @@ PARAMS = [
         "min_subscribers",
         1,
         "Start once candidate and duel_request topics have this many subscribers.",
+        int_range=(0, 1000),
+    ),
+    Param(
+        "worker_timeout_s",
+        30.0,
+        "Seconds without a heartbeat before a worker's candidate goes to another worker "
+        "(longer than the longest episode).",
+        float_range=(0.5, 86_400.0),
+    ),
+    Param(
+        "worker_queue",
+        2,
+        "Candidates out to one pool worker at a time (1 = the next one only after a result).",
+        int_range=(1, 1000),
+    ),
+    Param(
+        "min_workers",
+        0,
+        "Start once this many pool workers are heard (0 = do not wait).",
         int_range=(0, 1000),
     ),
 ]
@@ -255,7 +300,10 @@ class OptimizerNode(SuiteNode):
         self._pub_candidate = self.publisher(CANDIDATE)
         self._pub_request = self.publisher(DUEL_REQUEST)
         self._pub_incumbent = self.publisher(INCUMBENT)
+        self.pool = WorkerPool(self.settings["worker_timeout_s"], self.settings["worker_queue"])
         self.subscribe(DUEL_OUTCOME, self._on_outcome)
+        self.subscribe(STATUS, self._on_status)
+        self.subscribe(EPISODE_RESULT, self._on_result)
         self._pub_config.publish(self.config.encode())
         self.state = "waiting"
         self._timer = self.create_timer(TICK_S, self._tick)
@@ -267,15 +315,20 @@ class OptimizerNode(SuiteNode):
     def _tick(self) -> None:
         if self.finished:
             return
+        now = self._now()
         if not self._started:
             need = self.settings["min_subscribers"]
             if (
                 self._pub_candidate.get_subscription_count() >= need
                 and self._pub_request.get_subscription_count() >= need
+                and len(self.pool.live(now)) >= self.settings["min_workers"]
             ):
                 self._start()
             return
-        now = self._now()
+        if self.pool.outstanding() and any(
+            w not in self.pool.live(now) for w in self.pool.outstanding().values()
+        ):
+            self._dispatch()
         if self.driver.step_open and now >= self._deadline:
             timeout = self.settings["duel_timeout_s"]
             for req in self.driver.pending_requests():
@@ -305,16 +358,52 @@ class OptimizerNode(SuiteNode):
     # ------------------------------------------------------------------ publishing
     def _next_step(self) -> None:
         work = self.driver.ask()
-        for cand in work.candidates:
-            self._pub_candidate.publish(cand.encode())
+        self._dispatch(fresh={c.candidate_id for c in work.candidates})
         for req in work.requests:
             self._pub_request.publish(req.encode())
         self._last_publish = self._now()
         self._deadline = self._last_publish + self.settings["duel_timeout_s"]
 
+    def _dispatch(
+        self, *, fresh: set[int] | frozenset[int] = frozenset(), again: bool = False
+    ) -> None:
+        """Publish candidates of the open step: new assignments to workers with room, the
+        ``fresh`` ones unassigned while no worker is known, and with ``again`` every pending
+        candidate that is assigned or evaluated (to its worker) or, with no worker known,
+        unassigned. Candidates of workers gone silent are taken back first."""
+        if not self.driver.step_open:
+            return
+        now = self._now()
+        for gone in self.pool.expire(now):
+            self.warn(
+                "worker_lost",
+                f"worker {gone.worker} went silent with candidate {gone.candidate_id}; "
+                "handing it to another worker",
+            )
+        pending = self.driver.pending_candidates()
+        ids = [c.candidate_id for c in pending]
+        new = {a.candidate_id for a in self.pool.assign(ids, now, retry=again)}
+        live = self.pool.live(now)
+        self.counters["assigned"] = self.pool.assigned
+        self.counters["reassigned"] = self.pool.reassigned
+        self.counters["workers"] = len(live)
+        for cand in pending:
+            cid = cand.candidate_id
+            worker = self.pool.worker_for(cid)
+            if cid in new:
+                self._publish_candidate(cand, worker)
+            elif not live:
+                if again or cid in fresh:
+                    self._publish_candidate(cand, "")
+            elif again and worker:
+                # evaluated by a worker now gone: any live worker re-publishes it identically
+                self._publish_candidate(cand, worker if worker in live else live[0])
+
+    def _publish_candidate(self, cand: CandidateMsg, worker: str) -> None:
+        self._pub_candidate.publish(cand.assigned_to(worker).encode())
+
     def _publish_pending(self) -> None:
-        for cand in self.driver.pending_candidates():
-            self._pub_candidate.publish(cand.encode())
+        self._dispatch(again=True)
         for req in self.driver.pending_requests():
             self._pub_request.publish(req.encode())
         self._last_publish = self._now()
@@ -323,6 +412,28 @@ class OptimizerNode(SuiteNode):
         inc = self.driver.incumbent()
         if inc is not None:
             self._pub_incumbent.publish(inc.encode())
+
+    # ------------------------------------------------------------------ pool
+    def _on_status(self, msg: object) -> None:
+        status = Status.decode(msg)
+        if isinstance(status, DecodeError):
+            self.drop_decode(status)
+            return
+        worker = worker_of(status)
+        if worker is None or status.run_id != self.config.run_id:
+            return
+        serving = status.state in SERVING_STATES
+        if self.pool.heard(worker, serving, self._now()) and serving and self._started:
+            self._dispatch()  # a new worker: give it work
+
+    def _on_result(self, msg: object) -> None:
+        result = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(result, DecodeError):
+            self.drop_decode(result)
+            return
+        self.pool.result(result.candidate_id, result.status is EpisodeStatus.OK)
+        if self._started and not self.finished:
+            self._dispatch()  # the worker is free: its next candidate
 
     # ------------------------------------------------------------------ outcomes
     def _on_outcome(self, msg: object) -> None:

@@ -23,6 +23,11 @@ decides). Results are matched by candidate id; a repeated candidate gets its sto
 The original parameters are set back when the run ends (the optimizer's status says ``done``
 or ``failed``), when another run starts, and when the node stops (SIGINT, SIGTERM, ``close``).
 Non-finite score samples and done signals outside a trial are dropped and counted.
+
+Pool worker (:mod:`localpbo_ros.pool`): like ``sim_node``, the bridge announces its worker id
+and current trial in its status heartbeats (``info.worker``, ``info.busy``) and takes only the
+candidates assigned to it or unassigned ones (others: ``candidates_for_others``), so several
+bridges, each on its own controller instance, share a run.
 """
 
 from __future__ import annotations
@@ -61,6 +66,7 @@ from localpbo_ros.bridge import (
 from localpbo_ros.driver import space_of
 from localpbo_ros.follower import FollowerNode
 from localpbo_ros.params import Param, ParameterError
+from localpbo_ros.pool import BUSY_INFO, WORKER_INFO, new_worker_id
 
 PARAMS = [
     Param("target_node", "", "Node whose parameters are tuned, e.g. /pid_controller_node."),
@@ -170,10 +176,16 @@ class ParamBridgeNode(FollowerNode):
                 self.create_service(Trigger, s["done_service"], self._on_done_call)
         except Exception as exc:  # rclpy refuses an invalid topic or service name
             raise ParameterError("score_topic", f"{type(exc).__name__}: {exc}") from None
+        self.worker_id = new_worker_id(self.get_name())
         self._pub = self.publisher(EPISODE_RESULT)
         self.subscribe(CANDIDATE, self._on_candidate)
         self.subscribe(STATUS, self._on_status)
         self.create_timer(TICK_S, self._tick)
+
+    def status_info(self) -> dict[str, str]:
+        """The worker id and the candidate on trial (empty when idle)."""
+        busy = "" if self._current is None else str(self._current.candidate_id)
+        return {WORKER_INFO: self.worker_id, BUSY_INFO: busy}
 
     def _client(self, srv: Any, service: str) -> Any:
         return self.create_client(srv, f"{self.target}/{service}")
@@ -236,7 +248,11 @@ class ParamBridgeNode(FollowerNode):
         return self._set.call_async(SetParametersAtomically.Request(parameters=params))
 
     def close(self) -> None:
-        """Stopping: set the original parameters back and wait (``service_timeout_s``)."""
+        """Stopping: say so (the optimizer hands this worker's candidate to another one), set
+        the original parameters back and wait (``service_timeout_s``)."""
+        if self.state != "failed":
+            self.state = "stopped"
+            self.publish_status()
         future = self._restore()
         if future is None:
             return
@@ -267,6 +283,9 @@ class ParamBridgeNode(FollowerNode):
         )
         if isinstance(cand, DecodeError):
             self.drop_decode(cand)
+            return
+        if cand.worker and cand.worker != self.worker_id:
+            self.counters["candidates_for_others"] += 1
             return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:

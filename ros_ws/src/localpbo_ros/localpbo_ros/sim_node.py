@@ -9,6 +9,15 @@ run evaluates, whichever process evaluates it and in whichever order.
 Idempotent by id: a candidate seen again with the same θ gets its stored result re-published
 (no second episode); a failed episode is re-run when its candidate is published again (retry).
 An evaluator that raises, or returns a non-finite value, yields a ``failed`` episode result.
+
+Pool worker (:mod:`localpbo_ros.pool`): the node announces its worker id
+(``<node name>.<8 hex>``) and the candidate it evaluates in its status heartbeats
+(``info.worker``, ``info.busy``; one heartbeat also goes out as an episode starts). It
+evaluates the candidates assigned to it (``worker=<its id>``) and unassigned ones, and skips
+those assigned to another worker (``candidates_for_others``). The node evaluates in its
+executor's thread, so it sends no heartbeat during an episode: the optimizer's
+``worker_timeout_s`` must exceed the longest episode. A worker that stops on a signal reports
+state ``stopped`` on its way out, and its candidate goes to another worker at once.
 """
 
 from __future__ import annotations
@@ -27,6 +36,7 @@ from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
 from localpbo_ros.driver import problem_of
 from localpbo_ros.follower import FollowerNode
+from localpbo_ros.pool import BUSY_INFO, WORKER_INFO, new_worker_id
 
 Evaluator = Callable[[RunConfig, int, np.ndarray], float]
 """``(run config, candidate id, θ in task units as received) -> episode return``."""
@@ -52,8 +62,21 @@ class SimNode(FollowerNode):
         self._problem: Any = None
         self._thetas: dict[int, tuple[float, ...]] = {}
         self._results: dict[int, EpisodeResult] = {}
+        self.worker_id = new_worker_id(self.get_name())
+        self.busy: int | None = None
         self._pub = self.publisher(EPISODE_RESULT)
         self.subscribe(CANDIDATE, self._on_candidate)
+        self.publish_status()  # announce the worker now, not a status period later
+
+    def status_info(self) -> dict[str, str]:
+        """The worker id and the candidate being evaluated (empty when idle)."""
+        return {WORKER_INFO: self.worker_id, BUSY_INFO: "" if self.busy is None else str(self.busy)}
+
+    def close(self) -> None:
+        """Stopping (SIGINT/SIGTERM): say so, so the optimizer hands this worker's candidate
+        to another worker at once instead of after ``worker_timeout_s``."""
+        self.state = "stopped"
+        self.publish_status()
 
     def reset(self) -> None:
         """Forget the previous run's candidates and results."""
@@ -87,6 +110,9 @@ class SimNode(FollowerNode):
         if isinstance(cand, DecodeError):
             self.drop(cand.reason.value, str(cand))
             return
+        if cand.worker and cand.worker != self.worker_id:
+            self.counters["candidates_for_others"] += 1
+            return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:
             self.drop("conflicting_candidate", f"candidate {cand.candidate_id} changed θ")
@@ -97,6 +123,8 @@ class SimNode(FollowerNode):
             self.counters["results_repeated"] += 1
             self._pub.publish(cached.encode())
             return
+        self.busy = cand.candidate_id
+        self.publish_status()  # heartbeat: the episode may take longer than a status period
         try:
             value = self._evaluate(config, cand.candidate_id, cand.theta)
             if not math.isfinite(value):
@@ -109,6 +137,7 @@ class SimNode(FollowerNode):
             self.warn("episode_failed", f"episode of candidate {cand.candidate_id} failed: {exc}")
             text = f"{type(exc).__name__}: {exc}"[:4000] or "error"
             result = EpisodeResult.failed(config.run_id, cand.candidate_id, text)
+        self.busy = None
         self._pub.publish(result.encode())
 
 
