@@ -102,7 +102,7 @@ def test_budget_counts_every_evaluation_on_hartmann6(tmp_path) -> None:
         (["--budget", "3", "--initial-design", "4"], "budget"),
         (["--option", "colour=red"], "colour"),
         (["--option", "sobol.acquisition=qeubo"], "acquisition"),
-        (["--option", "turpbo.acquisition=ei"], "acquisition"),
+        (["--option", "turpbo.acquisition=nope"], "acquisition"),
         (["--option", "turpbo.warm_start=[0.5, 0.5, 0.5, 0.5, 0.5, nan]"], "warm_start"),
         (["--option", "turpbo.warm_start=[0.5, 0.5]"], "warm_start"),
         (["--noise", "-1"], "--noise"),

@@ -103,7 +103,7 @@ def test_unknown_algorithm_and_bad_dim() -> None:
     with pytest.raises(ValueError, match="dim"):
         make_optimizer("sobol", 0)
     with pytest.raises(ValueError, match="acquisition"):
-        make_optimizer("turpbo", 3, acquisition="ei")
+        make_optimizer("turpbo", 3, acquisition="nope")
 
 
 def test_default_budget_is_2_plus_10d() -> None:
