@@ -238,6 +238,8 @@ def _run_on_ray(
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address is None:
             kwargs["num_cpus"] = workers or os.cpu_count() or 1
+            # the embedded Ray serves this machine only: its head listens on loopback
+            kwargs["_node_ip_address"] = "127.0.0.1"
         ray.init(address=address, logging_level=logging.ERROR, **kwargs)
         started = True
     try:
