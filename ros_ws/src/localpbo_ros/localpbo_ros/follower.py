@@ -15,7 +15,7 @@ from typing import Any
 
 from rclpy.context import Context
 
-from localpbo_msgs_py import DecodeError, RunConfig
+from localpbo_msgs_py import CandidateMsg, DecodeError, RunConfig
 from localpbo_msgs_py.topics import RUN_CONFIG
 from localpbo_ros.base import SuiteNode
 from localpbo_ros.params import Param
@@ -106,3 +106,27 @@ class FollowerNode(SuiteNode, abc.ABC):
         else:
             self._early.append((handler, msg))
         return True
+
+    def candidate_for(self, msg: object, worker_id: str) -> CandidateMsg | None:
+        """Decode a candidate of the served run for the worker ``worker_id``.
+
+        Returns None for a malformed candidate (dropped and counted by its decode reason) and
+        for one assigned to another worker of a pool (counted as ``candidates_for_others``).
+        Call only once the run config is known (after :meth:`hold`).
+        """
+        config = self.config
+        assert config is not None
+        cand = CandidateMsg.decode(
+            msg,
+            expected_run_id=config.run_id,
+            expected_dim=config.dim,
+            lower=config.lower,
+            upper=config.upper,
+        )
+        if isinstance(cand, DecodeError):
+            self.drop_decode(cand)
+            return None
+        if cand.worker and cand.worker != worker_id:
+            self.counters["candidates_for_others"] += 1
+            return None
+        return cand

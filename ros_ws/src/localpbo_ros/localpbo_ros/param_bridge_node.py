@@ -274,18 +274,8 @@ class ParamBridgeNode(FollowerNode):
             return
         config = self.config
         assert config is not None
-        cand = CandidateMsg.decode(
-            msg,
-            expected_run_id=config.run_id,
-            expected_dim=config.dim,
-            lower=config.lower,
-            upper=config.upper,
-        )
-        if isinstance(cand, DecodeError):
-            self.drop_decode(cand)
-            return
-        if cand.worker and cand.worker != self.worker_id:
-            self.counters["candidates_for_others"] += 1
+        cand = self.candidate_for(msg, self.worker_id)
+        if cand is None:
             return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:

@@ -32,7 +32,7 @@ from rclpy.context import Context
 
 from localpbo_core.seeds import episode_seed
 from localpbo_core.session import evaluate_native
-from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig
+from localpbo_msgs_py import EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
 from localpbo_ros.driver import problem_of
 from localpbo_ros.follower import FollowerNode
@@ -100,18 +100,8 @@ class SimNode(FollowerNode):
             return
         config = self.config
         assert config is not None
-        cand = CandidateMsg.decode(
-            msg,
-            expected_run_id=config.run_id,
-            expected_dim=config.dim,
-            lower=config.lower,
-            upper=config.upper,
-        )
-        if isinstance(cand, DecodeError):
-            self.drop(cand.reason.value, str(cand))
-            return
-        if cand.worker and cand.worker != self.worker_id:
-            self.counters["candidates_for_others"] += 1
+        cand = self.candidate_for(msg, self.worker_id)
+        if cand is None:
             return
         known = self._thetas.get(cand.candidate_id)
         if known is not None and known != cand.theta:
