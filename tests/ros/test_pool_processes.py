@@ -17,7 +17,7 @@ from localpbo_msgs_py import CandidateMsg, EpisodeResult, EpisodeStatus, Status
 from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT, STATUS
 
-BUDGET = 24
+BUDGET = 48  # long enough that sim_1 is frozen well before the last batch
 
 
 def _scan(bag: Path) -> tuple[dict[str, str], dict[int, str], set[int]]:
@@ -87,7 +87,7 @@ def test_killed_worker_process_is_taken_over(tmp_path: Path) -> None:
             *("-p", "algorithm:=sobol", "-p", "algorithm_options:='{\"batch_size\": 4}'"),
             *("-p", f"budget:={BUDGET}", "-p", "run_id:=pool", "-p", "min_subscribers:=2"),
             *("-p", "min_workers:=2", "-p", "worker_timeout_s:=2.0"),
-            *("-p", 'task_options:=\'{"episode_steps": 50, "value_range": 50.0}\''),
+            *("-p", 'task_options:=\'{"episode_steps": 1000, "value_range": 50.0}\''),
         )
         victim = workers["sim_1"]
         # freeze sim_1 once it takes part, then kill it once it holds a candidate it never
@@ -124,7 +124,9 @@ def test_killed_worker_process_is_taken_over(tmp_path: Path) -> None:
     ][-1]
     assert final.state == "done" and final.counters["reassigned"] >= 1
     assert final.counters["assigned"] >= BUDGET + 1
-    assert set(assigned.values()) == {workers["sim_0"], workers["sim_1"]}
+    # sim_1 took part (waited for above); after the take-over a candidate's last assignment
+    # may be sim_0's for every candidate
+    assert set(assigned.values()) <= {workers["sim_0"], workers["sim_1"]}
     run = load_run(bag)
     assert len(run.candidates) == BUDGET
     report = verify(bag)
