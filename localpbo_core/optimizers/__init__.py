@@ -6,7 +6,7 @@ each algorithm module (and torch/BoTorch with it) is imported when first built.
 
 from typing import Any
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, Indifferent, Outcome
 from localpbo_core.optimizers.preference_optimizer import (
     BudgetExhausted,
     History,
@@ -42,6 +42,7 @@ __all__ = [
     "Candidate",
     "Duel",
     "History",
+    "Indifferent",
     "InvalidOutcome",
     "Outcome",
     "PendingDuels",

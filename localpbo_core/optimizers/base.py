@@ -3,7 +3,9 @@
 An optimizer is a deterministic state machine over (config, seed, outcomes so far), so the
 same configuration and the same outcomes in the same order reproduce the same state:
 ``ask()`` returns new candidates to evaluate and the duels wanted between candidate ids;
-``tell()`` takes duel outcomes. Budget is counted in evaluations (paper App. D.1).
+``tell()`` takes duel outcomes: decisive (:class:`Outcome`) or, when the optimizer was built
+with ``tie_threshold > 0``, "can't tell" (:class:`Indifferent`). Budget is counted in
+evaluations (paper App. D.1).
 """
 
 from __future__ import annotations
@@ -43,3 +45,17 @@ class Outcome:
 
     winner: int
     loser: int
+
+
+@dataclass(frozen=True)
+class Indifferent:
+    """A "can't tell" answer to the duel between ``first`` and ``second`` (ids): neither was
+    preferred. Modelled by the ordinal likelihood with threshold ``tie_threshold``
+    (:mod:`localpbo_core.surrogate.ordinal`); accepted only when that threshold is > 0."""
+
+    first: int
+    second: int
+
+
+DuelAnswer = Outcome | Indifferent
+"""What ``tell`` accepts for one duel."""

@@ -14,6 +14,12 @@ below the threshold is not refitted and the other branch gets weight 1 (the weig
 kept branches are renormalised). The dropped term is at most ``0.1 tr Sigma_11`` and
 refitting a nearly impossible outcome only adds cost. ``likelihood_threshold=0`` gives eq.
 GI_PBO_acf_detailed exactly.
+
+"Can't tell" answers: when the surrogate has an indifference threshold ``eps > 0`` (the
+ordinal likelihood of :mod:`localpbo_core.surrogate.ordinal`), the virtual duel has three
+outcomes, ``x > opp``, ``opp > x`` and a tie, with the predictive probabilities
+``Phi((+-mu_g - eps) / s)`` and the rest (``s^2 = 2 + var_g``); each is refitted with its own
+likelihood and the expectation runs over all three.
 """
 
 from __future__ import annotations
@@ -136,20 +142,33 @@ def gi_pbo_acquisition(
     else:
         new_points = cand.unsqueeze(1)
         i_opp, i_x = j_opp, p
-    prob_x = surrogate.preference_probability(cand, opponent.expand(n, d))  # P(x > opp)
-    probs = torch.stack([prob_x, 1.0 - prob_x], dim=1)  # outcome 0: x wins, 1: opp wins
+    opp = opponent.expand(n, d)
+    prob_x = surrogate.preference_probability(cand, opp)  # P(x > opp)
+    if surrogate.tie_threshold > 0:  # outcome 2: "can't tell"
+        prob_opp = surrogate.preference_probability(opp, cand)
+        prob_tie = (1.0 - prob_x - prob_opp).clamp_min(0.0)
+        probs = torch.stack([prob_x, prob_opp, prob_tie], dim=1)
+    else:
+        probs = torch.stack([prob_x, 1.0 - prob_x], dim=1)  # outcome 0: x wins, 1: opp wins
     keep = probs >= likelihood_threshold
     weights = torch.where(keep, probs, torch.zeros_like(probs))
     weights = weights / weights.sum(1, keepdim=True)
     rows, outcome = torch.nonzero(keep, as_tuple=True)
     winners = torch.where(outcome == 0, i_x, i_opp).long()
     losers = torch.where(outcome == 0, i_opp, i_x).long()
+    vtie = outcome == 2 if probs.shape[1] == 3 else None
     P = p + new_points.shape[1]
     chunk = max(1, _CHUNK_ENTRIES // (P * P))
     traces = torch.empty(rows.shape[0], dtype=torch.float64)
     for s in range(0, rows.shape[0], chunk):
         sl = slice(s, s + chunk)
-        fit = virtual_refit(surrogate, new_points[rows[sl]], winners[sl], losers[sl])
+        fit = virtual_refit(
+            surrogate,
+            new_points[rows[sl]],
+            winners[sl],
+            losers[sl],
+            virtual_tie=None if vtie is None else vtie[sl],
+        )
         traces[sl] = gradient_covariance_trace(surrogate, fit, center)
     expected = torch.zeros(n, dtype=torch.float64)
     expected.index_add_(0, rows, weights[rows, outcome] * traces)

@@ -36,7 +36,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import torch
 
-from localpbo_core.optimizers.base import Candidate, Outcome
+from localpbo_core.optimizers.base import Candidate, DuelAnswer, Outcome
 from localpbo_core.optimizers.gi_acquisition import (
     DEFAULT_BOUNDS,
     DEFAULT_RADII,
@@ -110,6 +110,7 @@ class GIPBO(LocalPhaseOptimizer):
         likelihood_threshold: float = 0.1,
         virtual_opponent: str = "incumbent",
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
         super().__init__(
             dim,
@@ -118,6 +119,7 @@ class GIPBO(LocalPhaseOptimizer):
             initial_design=initial_design,
             warm_start=warm_start,
             hyperparameters=hyperparameters,
+            tie_threshold=tie_threshold,
         )
         self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
         self.min_step = check_float("min_step", min_step, minimum=0.0)
@@ -204,10 +206,11 @@ class GIPBO(LocalPhaseOptimizer):
 
     # ------------------------------------------------------------------ tell
     def _after_duels(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         query = candidates[-1].id
-        if any(o.winner == query for o in outcomes):
+        # a "can't tell" answer keeps the local incumbent (no win)
+        if any(isinstance(o, Outcome) and o.winner == query for o in outcomes):
             self._local_inc_id = query
         assert self._local_inc_id is not None  # the center was registered with this ask
         self._set_incumbent(self._local_inc_id)
@@ -243,6 +246,7 @@ class GIPBOr(GIPBO):
         num_local_queries: int | None = None,
         search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
         super().__init__(
             dim,
@@ -255,4 +259,5 @@ class GIPBOr(GIPBO):
             num_local_queries=num_local_queries,
             search_bounds=search_bounds,
             hyperparameters=hyperparameters,
+            tie_threshold=tie_threshold,
         )

@@ -28,8 +28,11 @@ GLISp *minimises*, so "better" is "preferred"):
   afterwards. Not thread-safe across concurrent GLISp instances in one process.
 * Comparison tolerance 1e-4 (GLISp table): in glis this is the decision maker's tie
   tolerance (``|f1 - f2| <= tol`` -> ``pref = 0``). Our oracle and the ask/tell contract
-  report only win/loss, so ``pref`` is always +-1; the surrogate-range floor ``epsDeltaF``
-  is glis's default 1e-4.
+  report win/loss as ``pref = -1/+1`` and a "can't tell" answer
+  (:class:`~localpbo_core.optimizers.base.Indifferent`, with ``tie_threshold > 0``) as
+  ``pref = 0``: GLISp's own "equal" preference constraint ``|f_hat(x) - f_hat(y)| <= sigma``
+  (Bemporad & Piga 2021, Sec. 3.1), which keeps the current best. The surrogate-range floor
+  ``epsDeltaF`` is glis's default 1e-4.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from typing import Any, Protocol, cast
 
 import numpy as np
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.validation import SettingError, check_float, check_int
 
@@ -135,8 +138,16 @@ class GLISpOptimizer(PreferenceOptimizer):
         pso_iters: int = 2000,
         pso_swarm_size: int = 20,
         batch_size: int = 1,
+        tie_threshold: float = 0.0,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            tie_threshold=tie_threshold,
+        )
         if isinstance(batch_size, bool) or batch_size != 1:
             raise SettingError(
                 "batch_size", f"GLISp queries one point at a time, got {batch_size!r}"
@@ -184,12 +195,16 @@ class GLISpOptimizer(PreferenceOptimizer):
         while self._fed < len(self._outcomes):
             out = self._outcomes[self._fed]
             new_id = int(glis.iter)
-            if {out.winner, out.loser} != {new_id, int(glis.ibest)}:
+            pair = {out.winner, out.loser} if isinstance(out, Outcome) else {out.first, out.second}
+            if pair != {new_id, int(glis.ibest)}:
                 raise RuntimeError(
                     f"glisp: outcome {out} is not the duel of candidate {new_id} against "
                     f"GLISp's best {glis.ibest}"
                 )
-            pref = -1 if out.winner == new_id else 1
+            if isinstance(out, Outcome):
+                pref = -1 if out.winner == new_id else 1
+            else:
+                pref = 0  # "can't tell": GLISp's equality constraint
             with _seeded_pso(self._pso_seed(new_id)):
                 xnext = np.asarray(glis.update(pref), dtype=np.float64)
             self._fed += 1
@@ -210,6 +225,6 @@ class GLISpOptimizer(PreferenceOptimizer):
         return Ask(tuple(new), (Duel(new[0].id, self._require_incumbent()),))
 
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         self._update_king(outcomes)

@@ -55,6 +55,10 @@ EI maximisation: ``num_raw_samples`` uniform points of [0,1]^d plus the incumben
 1024 raw samples / 5 restarts of the other acquisition optimisers; Takeno et al. use 20 d Sobol
 starts plus the current best). Every random draw (chain, raw samples) comes from
 ``step_generator(seed, step)``, so the same seed and outcomes give bit-identical candidates.
+"Can't tell" answers (``tie_threshold`` ``eps > 0``): the skew-GP posterior becomes the normal
+restricted to ``g_k >= eps`` for decisive duels and ``|g_k| < eps`` for ties (the ordinal
+likelihood of :mod:`localpbo_core.surrogate.ordinal`, sampled as in
+:mod:`localpbo_core.surrogate.skew_gp`); a tie keeps the current winner.
 """
 
 from __future__ import annotations
@@ -132,13 +136,20 @@ class HBEI(KingOfTheHillOptimizer):
         steps_per_iteration: int = 1000,
         hyperparameter_refit_every: int = 10,
         outputscale: float | None = TAKENO_OUTPUTSCALE,
+        tie_threshold: float = 0.0,
     ) -> None:
         if isinstance(batch_size, bool) or batch_size != 1:
             raise SettingError(
                 "batch_size", f"HB-EI proposes one point per iteration, got {batch_size!r}"
             )
         super().__init__(
-            dim, seed, budget, initial_design=initial_design, warm_start=warm_start, batch_size=1
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            batch_size=1,
+            tie_threshold=tie_threshold,
         )
         self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
         self.num_restarts = check_int("num_restarts", num_restarts)
@@ -154,7 +165,7 @@ class HBEI(KingOfTheHillOptimizer):
             if outputscale is None
             else check_float("outputscale", outputscale, minimum=0.0, minimum_open=True)
         )
-        self.chain = DuelPosteriorChain()
+        self.chain = DuelPosteriorChain(tie_threshold=self.tie_threshold)
         self._laplace: PairwiseGPSurrogate | None = None
         self._iterations = 0
         #: The believed GP of the last iteration (for inspection).
@@ -174,6 +185,8 @@ class HBEI(KingOfTheHillOptimizer):
                 torch.tensor(self.comparisons(), dtype=torch.long),
                 outputscale=self.outputscale,
                 warm_start=self._laplace,
+                ties=torch.tensor(self.ties(), dtype=torch.long),
+                tie_threshold=self.tie_threshold,
             )
         assert self._laplace is not None
         return self._laplace.lengthscale.numpy().copy(), float(self._laplace.outputscale), relearn
@@ -181,8 +194,10 @@ class HBEI(KingOfTheHillOptimizer):
     def _propose_thetas(self, q: int) -> list[np.ndarray]:
         rng = step_generator(self.seed, self._step)
         ls, s, relearned = self._hyperparameters()
-        comps = self.comparisons()
-        kept = self.chain.update(self.train_inputs(), comps[:, 0], comps[:, 1], ls, s, rng)
+        rows, tie = self.duel_rows()  # in tell order, so the chain's state stays a prefix
+        kept = self.chain.update(
+            self.train_inputs(), rows[:, 0], rows[:, 1], ls, s, rng, tie if tie.any() else None
+        )
         steps = self.steps_per_iteration if kept and not relearned else self.burn_in
         self.chain.run(steps, rng)
         gp = self.chain.conditioned_gp()

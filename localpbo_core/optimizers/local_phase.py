@@ -25,7 +25,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.surrogate import Surrogate
@@ -48,9 +48,19 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
-        self._refitter = SurrogateRefitter(1, check_hyperparameters(hyperparameters, self.dim))
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            tie_threshold=tie_threshold,
+        )
+        self._refitter = SurrogateRefitter(
+            1, check_hyperparameters(hyperparameters, self.dim), self.tie_threshold
+        )
         self._center_id: int | None = None
         self._center_theta: np.ndarray | None = None
         self._center_pending = False  # a step center not evaluated yet
@@ -90,7 +100,7 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         if self._surrogate is not None and key == self._fit_key:
             return self._surrogate
         self._fit_key = key
-        fitted = self._refitter.refit(self.train_inputs(), self.comparisons())
+        fitted = self._refitter.refit(self.train_inputs(), self.comparisons(), self.ties())
         self._surrogate = fitted
         return fitted
 
@@ -137,7 +147,7 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         self._start_phase()
 
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         if self._final_center_duel:  # the last evaluation: center vs the incumbent
             self._final_center_duel = False
@@ -155,7 +165,7 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
 
     @abc.abstractmethod
     def _after_duels(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         """Update the phase after every duel of a local ask was answered."""
 

@@ -12,7 +12,12 @@ Bookkeeping that every algorithm needs lives here:
   optional ``warm_start`` vector replaces the first design point;
 * validation of outcomes *before* any state changes (a rejected ``tell`` leaves the
   optimizer untouched, so the ROS node can drop and count bad messages);
-* the incumbent, defined from preferences only (the current king of the hill).
+* the incumbent, defined from preferences only (the current king of the hill);
+* "can't tell" answers (:class:`~localpbo_core.optimizers.base.Indifferent`), accepted iff
+  ``tie_threshold > 0`` (the indifference threshold of the ordinal likelihood,
+  :mod:`localpbo_core.surrogate.ordinal`): kept in the history, handed to models by
+  :meth:`PreferenceOptimizer.ties`, and never a win (king of the hill keeps the incumbent on a
+  tie; the first initial duel, which has no incumbent yet, keeps the earlier candidate).
 
 Subclasses implement :meth:`PreferenceOptimizer._propose` (the next work after the initial
 design) and :meth:`PreferenceOptimizer._on_step_complete` (update their own state once every
@@ -28,8 +33,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
-from localpbo_core.validation import SettingError, ValidationError, check_int, check_theta
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Indifferent, Outcome
+from localpbo_core.validation import (
+    SettingError,
+    ValidationError,
+    check_float,
+    check_int,
+    check_theta,
+)
 
 if TYPE_CHECKING:  # the protocol module imports torch; the base class does not need it
     from localpbo_core.surrogate.protocol import Surrogate
@@ -61,12 +72,12 @@ class History:
     Attributes:
         candidates: every proposed candidate (index == id).
         duels: every duel asked, in ask order.
-        outcomes: every accepted outcome, in tell order.
+        outcomes: every accepted answer (decisive or "can't tell"), in tell order.
     """
 
     candidates: tuple[Candidate, ...]
     duels: tuple[Duel, ...]
-    outcomes: tuple[Outcome, ...]
+    outcomes: tuple[DuelAnswer, ...]
 
 
 def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
@@ -87,6 +98,8 @@ class PreferenceOptimizer(abc.ABC):
         budget: total number of evaluations (candidates), initial design included.
         initial_design: number of initial uniform points (>= 2), shared by all algorithms.
         warm_start: optional existing controller in [0,1]^d replacing the first design point.
+        tie_threshold: indifference threshold ``eps >= 0`` of the ordinal likelihood; "can't
+            tell" answers are accepted iff it is > 0.
     """
 
     #: Registry name, set by subclasses.
@@ -99,8 +112,10 @@ class PreferenceOptimizer(abc.ABC):
         budget: int,
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
         self.dim = check_int("dim", dim)
+        self.tie_threshold = check_float("tie_threshold", tie_threshold, minimum=0.0)
         self.seed = check_int("seed", seed, minimum=0)
         self.initial_design = check_int("initial_design", initial_design, minimum=2)
         self._budget = check_int("budget", budget, minimum=0)
@@ -118,10 +133,10 @@ class PreferenceOptimizer(abc.ABC):
         self._design = design
         self._candidates: list[Candidate] = []
         self._duels: list[Duel] = []
-        self._outcomes: list[Outcome] = []
+        self._outcomes: list[DuelAnswer] = []
         # Duels of the current ask not answered yet, and the outcomes of the current ask.
         self._pending: list[Duel] = []
-        self._step_outcomes: list[Outcome] = []
+        self._step_outcomes: list[DuelAnswer] = []
         self._step_candidates: tuple[Candidate, ...] = ()
         self._incumbent_id: int | None = None
         self._step = 0  # number of completed asks
@@ -180,10 +195,30 @@ class PreferenceOptimizer(abc.ABC):
         return np.stack([c.theta for c in self._candidates])
 
     def comparisons(self) -> np.ndarray:
-        """All accepted outcomes as an (m, 2) int64 array of ``[winner, loser]`` ids."""
-        if not self._outcomes:
+        """All accepted decisive outcomes as an (m, 2) int64 array of ``[winner, loser]``
+        ids."""
+        rows = [[o.winner, o.loser] for o in self._outcomes if isinstance(o, Outcome)]
+        if not rows:
             return np.empty((0, 2), dtype=np.int64)
-        return np.array([[o.winner, o.loser] for o in self._outcomes], dtype=np.int64)
+        return np.array(rows, dtype=np.int64)
+
+    def duel_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every accepted answer in tell order: ``(m, 2)`` int64 rows (``[winner, loser]`` or,
+        for a "can't tell" answer, ``[first, second]``) and an ``(m,)`` bool tie mask."""
+        rows = [
+            [o.winner, o.loser] if isinstance(o, Outcome) else [o.first, o.second]
+            for o in self._outcomes
+        ]
+        tie = np.array([isinstance(o, Indifferent) for o in self._outcomes], dtype=bool)
+        return np.array(rows, dtype=np.int64).reshape(-1, 2), tie
+
+    def ties(self) -> np.ndarray:
+        """All accepted "can't tell" answers as a (k, 2) int64 array of ``[first, second]``
+        ids."""
+        rows = [[o.first, o.second] for o in self._outcomes if isinstance(o, Indifferent)]
+        if not rows:
+            return np.empty((0, 2), dtype=np.int64)
+        return np.array(rows, dtype=np.int64)
 
     # ------------------------------------------------------------------ ask / tell
     def ask(self) -> Ask:
@@ -219,14 +254,15 @@ class PreferenceOptimizer(abc.ABC):
                 raise
         return self._open_step(ask)
 
-    def tell(self, outcomes: Iterable[Outcome]) -> None:
+    def tell(self, outcomes: Iterable[DuelAnswer]) -> None:
         """Record duel outcomes (a subset or all of the pending duels).
 
         Everything is validated before any state changes.
 
         Raises:
             InvalidOutcome: an unknown id, a duel that was not asked (or is not pending),
-                a repeated outcome, or an object that is not an outcome.
+                a repeated outcome, an object that is not an outcome, or a "can't tell"
+                answer while ``tie_threshold`` is 0.
         """
         outs = list(outcomes)
         pending = list(self._pending)
@@ -268,20 +304,30 @@ class PreferenceOptimizer(abc.ABC):
     def _match(self, out: object, pending: list[Duel]) -> Duel:
         """Find the pending duel answered by ``out`` or raise InvalidOutcome.
 
-        This is the single place where outcome kinds are dispatched; the only kind is a
-        win/loss :class:`Outcome`.
+        This is the single place where outcome kinds are dispatched: a win/loss
+        :class:`Outcome` (roles ``winner``, ``loser``) or a "can't tell"
+        :class:`Indifferent` (roles ``first``, ``second``; only with ``tie_threshold > 0``).
         """
-        if not isinstance(out, Outcome):
-            raise InvalidOutcome("outcome", f"not an Outcome: {out!r}")
+        if isinstance(out, Outcome):
+            roles = (("winner", out.winner), ("loser", out.loser))
+        elif isinstance(out, Indifferent):
+            if self.tie_threshold <= 0:
+                raise InvalidOutcome(
+                    "outcome", "a 'can't tell' answer needs tie_threshold > 0 (it is 0)"
+                )
+            roles = (("first", out.first), ("second", out.second))
+        else:
+            raise InvalidOutcome("outcome", f"not an Outcome or Indifferent: {out!r}")
         n = self.evaluations_used
-        for role, cid in (("winner", out.winner), ("loser", out.loser)):
+        for role, cid in roles:
             if isinstance(cid, bool) or not isinstance(cid, int | np.integer):
                 raise InvalidOutcome(role, f"candidate id must be an integer, got {cid!r}")
             if not 0 <= cid < n:
                 raise InvalidOutcome(role, f"unknown candidate id {cid} (ids are 0..{n - 1})")
-        if out.winner == out.loser:
-            raise InvalidOutcome("outcome", f"self-duel {out.winner} vs {out.loser}")
-        pair = {int(out.winner), int(out.loser)}
+        a, b = int(roles[0][1]), int(roles[1][1])
+        if a == b:
+            raise InvalidOutcome("outcome", f"self-duel {a} vs {b}")
+        pair = {a, b}
         for duel in pending:
             if {duel.first, duel.second} == pair:
                 return duel
@@ -314,15 +360,23 @@ class PreferenceOptimizer(abc.ABC):
             raise RuntimeError("no incumbent yet")
         return self._incumbent_id
 
-    def _update_king(self, outcomes: Sequence[Outcome]) -> bool:
+    def _update_king(self, outcomes: Sequence[DuelAnswer]) -> bool:
         """King-of-the-hill update (App. D.1): a candidate that beats the incumbent replaces
         it. With several winners against the incumbent in one batch, the first winner in
-        proposal order (lowest id) becomes the incumbent. Returns True if it changed."""
+        proposal order (lowest id) becomes the incumbent. A "can't tell" answer changes
+        nothing; without an incumbent yet (the first duel) it crowns the duel's second
+        candidate, the earlier one (the warm start if given). Returns True if it changed."""
         if self._incumbent_id is None:
             first = outcomes[0]
-            self._incumbent_id = int(first.winner)
+            self._incumbent_id = int(
+                first.winner if isinstance(first, Outcome) else min(first.first, first.second)
+            )
             return True
-        winners = sorted(int(o.winner) for o in outcomes if o.loser == self._incumbent_id)
+        winners = sorted(
+            int(o.winner)
+            for o in outcomes
+            if isinstance(o, Outcome) and o.loser == self._incumbent_id
+        )
         if winners:
             self._incumbent_id = winners[0]
             return True
@@ -336,7 +390,7 @@ class PreferenceOptimizer(abc.ABC):
 
     @abc.abstractmethod
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         """Called once every duel of an ask (after the initial design) is answered."""
 
@@ -356,8 +410,16 @@ class KingOfTheHillOptimizer(PreferenceOptimizer):
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
         batch_size: int = 1,
+        tie_threshold: float = 0.0,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            tie_threshold=tie_threshold,
+        )
         self.batch_size = check_int("batch_size", batch_size)
 
     def _propose(self, remaining: int) -> Ask:
@@ -368,7 +430,7 @@ class KingOfTheHillOptimizer(PreferenceOptimizer):
         return Ask(tuple(new), tuple(Duel(c.id, inc) for c in new))
 
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         self._update_king(outcomes)
 

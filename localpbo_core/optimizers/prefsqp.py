@@ -58,7 +58,7 @@ import scipy.stats
 import torch
 
 from localpbo_core.optimizers.acquisition import eubo_from_moments
-from localpbo_core.optimizers.base import Candidate, Outcome
+from localpbo_core.optimizers.base import Candidate, DuelAnswer, Outcome
 from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
 from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.surrogate import Surrogate
@@ -217,6 +217,7 @@ class PrefSQP(LocalPhaseOptimizer):
         num_features: int = 1024,
         eigenvalue_floor: float = 1e-6,
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
         super().__init__(
             dim,
@@ -225,6 +226,7 @@ class PrefSQP(LocalPhaseOptimizer):
             initial_design=initial_design,
             warm_start=warm_start,
             hyperparameters=hyperparameters,
+            tie_threshold=tie_threshold,
         )
         self.epsilon = check_float("epsilon", epsilon, minimum=0.0, minimum_open=True)
         self.num_local_samples = (
@@ -260,10 +262,11 @@ class PrefSQP(LocalPhaseOptimizer):
 
     # ------------------------------------------------------------------ tell
     def _after_duels(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         center = self._center_id
-        winners = sorted(o.winner for o in outcomes if o.loser == center)
+        # a "can't tell" answer is no win: the center stays the incumbent
+        winners = sorted(o.winner for o in outcomes if isinstance(o, Outcome) and o.loser == center)
         assert center is not None
         self._set_incumbent(winners[0] if winners else center)
         surrogate = self._fit()

@@ -44,7 +44,7 @@ from botorch.optim import optimize_acqf
 from botorch.sampling import SobolQMCNormalSampler
 from botorch.utils.sampling import manual_seed
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
@@ -85,8 +85,16 @@ class QEUBO(PreferenceOptimizer):
         num_mc_samples: int = 256,
         hyperparameter_refit_every: int = 1,
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            tie_threshold=tie_threshold,
+        )
         self.batch_size = check_int("batch_size", batch_size)
         self.num_restarts = check_int("num_restarts", num_restarts)
         self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
@@ -97,7 +105,9 @@ class QEUBO(PreferenceOptimizer):
         if self.num_restarts > self.num_raw_samples:
             raise SettingError("num_restarts", "must not exceed num_raw_samples")
         self._refitter = SurrogateRefitter(
-            self.hyperparameter_refit_every, check_hyperparameters(hyperparameters, self.dim)
+            self.hyperparameter_refit_every,
+            check_hyperparameters(hyperparameters, self.dim),
+            self.tie_threshold,
         )
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
@@ -125,7 +135,7 @@ class QEUBO(PreferenceOptimizer):
         return super().ask()
 
     def _fit(self) -> Surrogate:
-        return self._refitter.refit(self.train_inputs(), self.comparisons())
+        return self._refitter.refit(self.train_inputs(), self.comparisons(), self.ties())
 
     def select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Refit and maximise (q)EUBO over [0,1]^d; returns ``(q, d)``."""
@@ -175,16 +185,17 @@ class QEUBO(PreferenceOptimizer):
         return tuple(Duel(s[i], s[i + 1]) for i in range(0, len(s) - 1, 2))
 
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         if self._final_pending:
             self._final_pending = False
             self._update_king(outcomes)
             return
-        winners = {o.winner for o in outcomes}
+        losers = {o.loser for o in outcomes if isinstance(o, Outcome)}
         s = self._survivors
-        # Winners of the played pairs (in bracket order) plus the bye, if any.
-        nxt = [a if a in winners else b for a, b in zip(s[0::2], s[1::2], strict=False)]
+        # Winners of the played pairs (in bracket order) plus the bye, if any; after a "can't
+        # tell" answer the pair's first candidate (the lower id) goes on.
+        nxt = [b if a in losers else a for a, b in zip(s[0::2], s[1::2], strict=False)]
         if len(s) % 2 == 1:
             nxt.append(s[-1])
         self._survivors = nxt

@@ -8,7 +8,8 @@ weighs every duel of the run: it fits the pairwise GP of paper Sec. 4 (Laplace p
 hyperparameters learned from the evidence) to all comparisons and returns the evaluated
 candidate with the highest posterior mean utility ``mu(x) = k(x, X) K^{-1} f_hat``. It reads
 only the preferences, never a return. When the optimizer keeps a fitted surrogate, the fit is
-warm-started from it.
+warm-started from it. "Can't tell" answers enter with the optimizer's ``tie_threshold``
+(the ordinal likelihood of :mod:`localpbo_core.surrogate.ordinal`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
     """The evaluated candidate with the highest posterior mean utility given all duels so far
     (ties: lowest id); the incumbent while there is no outcome yet (None before any)."""
     comparisons = optimizer.comparisons()
-    if comparisons.shape[0] == 0:
+    ties = optimizer.ties()
+    if comparisons.shape[0] == 0 and ties.shape[0] == 0:
         return optimizer.incumbent
     X = torch.tensor(optimizer.train_inputs(), dtype=torch.float64)
     # the optimizer's own last fit (TuRPBO, qEUBO, ...) is a warm start: one refit, not a cold fit
@@ -33,7 +35,11 @@ def recommend(optimizer: PreferenceOptimizer) -> Candidate | None:
     if warm is not None and warm.dim != X.shape[1]:
         warm = None
     surrogate = PairwiseGPSurrogate.fit(
-        X, torch.tensor(comparisons, dtype=torch.long), warm_start=warm
+        X,
+        torch.tensor(comparisons, dtype=torch.long),
+        warm_start=warm,
+        ties=torch.tensor(ties, dtype=torch.long),
+        tie_threshold=optimizer.tie_threshold,
     )
     with torch.no_grad():
         mean = surrogate.mean(X).numpy()

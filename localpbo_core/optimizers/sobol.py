@@ -36,6 +36,7 @@ class SobolOptimizer(KingOfTheHillOptimizer):
         initial_design: int = 2,
         warm_start: Sequence[float] | np.ndarray | None = None,
         batch_size: int = 1,
+        tie_threshold: float = 0.0,
     ) -> None:
         super().__init__(
             dim,
@@ -44,6 +45,7 @@ class SobolOptimizer(KingOfTheHillOptimizer):
             initial_design=initial_design,
             warm_start=warm_start,
             batch_size=batch_size,
+            tie_threshold=tie_threshold,
         )
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, SOBOL_TAG]))
         self._engine = qmc.Sobol(d=self.dim, scramble=True, rng=rng)

@@ -14,6 +14,11 @@ out one is learned). It is checked by :func:`check_hyperparameters` and applied 
 fit: the surrogate's hyperparameters then equal the given values after every fit. ``l`` is a
 positive number (isotropic) or a sequence of ``d`` positive numbers (ARD), ``s`` a positive
 number; they need not lie in the learning bounds.
+
+**"Can't tell" answers**: ``refit`` takes the ties as ``(k, 2)`` ``[first, second]`` rows and the
+refitter's ``tie_threshold`` (the ordinal likelihood's ``eps``,
+:mod:`localpbo_core.surrogate.ordinal`); with ``tie_threshold = 0`` and no ties the fit is the
+paper's.
 """
 
 from __future__ import annotations
@@ -82,18 +87,34 @@ class SurrogateRefitter:
     Args:
         every: relearn hyperparameters at fits 0, k, 2k, ...; must be an integer >= 1.
         fixed: hyperparameters held at given values at every fit (:func:`check_hyperparameters`).
+        tie_threshold: the indifference threshold ``eps >= 0`` of the ordinal likelihood.
     """
 
-    def __init__(self, every: int = 1, fixed: FixedHyperparameters | None = None) -> None:
+    def __init__(
+        self,
+        every: int = 1,
+        fixed: FixedHyperparameters | None = None,
+        tie_threshold: float = 0.0,
+    ) -> None:
         self.every = check_int("hyperparameter_refit_every", every)
         self.fixed = fixed
+        self.tie_threshold = check_float("tie_threshold", tie_threshold, minimum=0.0)
         self.fits = 0
         self.surrogate: Surrogate | None = None
 
-    def refit(self, train_inputs: np.ndarray, comparisons: np.ndarray) -> Surrogate:
-        """Fit on ``train_inputs`` (n, d) in [0,1]^d and ``comparisons`` (m, 2) [winner, loser]."""
+    def refit(
+        self,
+        train_inputs: np.ndarray,
+        comparisons: np.ndarray,
+        ties: np.ndarray | None = None,
+    ) -> Surrogate:
+        """Fit on ``train_inputs`` (n, d) in [0,1]^d, ``comparisons`` (m, 2) [winner, loser]
+        and the "can't tell" ``ties`` (k, 2) [first, second] (None or empty: none)."""
         X = torch.tensor(train_inputs, dtype=torch.float64)
-        comps = torch.tensor(comparisons, dtype=torch.long)
+        comps = torch.tensor(comparisons, dtype=torch.long).reshape(-1, 2)
+        tie_rows = None
+        if ties is not None and len(ties):
+            tie_rows = torch.tensor(ties, dtype=torch.long).reshape(-1, 2)
         prev = self.surrogate
         lengthscale: torch.Tensor | None = None
         outputscale: float | None = None
@@ -105,10 +126,18 @@ class SurrogateRefitter:
             if self.fixed.outputscale is not None:
                 outputscale = self.fixed.outputscale
         if lengthscale is None and outputscale is None:
-            fitted = PairwiseGPSurrogate.fit(X, comps, warm_start=prev)
+            fitted = PairwiseGPSurrogate.fit(
+                X, comps, warm_start=prev, ties=tie_rows, tie_threshold=self.tie_threshold
+            )
         else:
             fitted = PairwiseGPSurrogate.fit(
-                X, comps, lengthscale=lengthscale, outputscale=outputscale, warm_start=prev
+                X,
+                comps,
+                lengthscale=lengthscale,
+                outputscale=outputscale,
+                warm_start=prev,
+                ties=tie_rows,
+                tie_threshold=self.tie_threshold,
             )
         self.surrogate = fitted
         self.fits += 1

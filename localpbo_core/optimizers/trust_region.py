@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
+from scipy.stats import qmc
 
 
 class TREvent(Enum):
@@ -116,8 +117,6 @@ def perturbed_candidates(
     """TuRBO's raw Thompson candidates: Sobol points in the box, where each coordinate is
     taken from the Sobol point with probability ``min(20/d, 1)`` and otherwise kept at the
     center (at least one coordinate per point is perturbed)."""
-    from scipy.stats import qmc
-
     d = center.size
     sobol = qmc.Sobol(d=d, scramble=True, rng=rng)
     pert = lb + (ub - lb) * sobol.random(num)

@@ -40,7 +40,7 @@ import numpy as np
 import torch
 
 from localpbo_core.optimizers.acquisition import ei_batch, eubo_batch, thompson_batch
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, Outcome
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.optimizers.trust_region import (
@@ -93,8 +93,16 @@ class TuRPBO(PreferenceOptimizer):
         num_mc_samples: int = 512,
         hyperparameter_refit_every: int = 1,
         hyperparameters: Mapping[str, object] | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
-        super().__init__(dim, seed, budget, initial_design=initial_design, warm_start=warm_start)
+        super().__init__(
+            dim,
+            seed,
+            budget,
+            initial_design=initial_design,
+            warm_start=warm_start,
+            tie_threshold=tie_threshold,
+        )
         self.batch_size = check_int("batch_size", batch_size)
         self.acquisition = check_choice("acquisition", acquisition, ACQUISITIONS)
         self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
@@ -114,7 +122,9 @@ class TuRPBO(PreferenceOptimizer):
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
         self._refitter = SurrogateRefitter(
-            self.hyperparameter_refit_every, check_hyperparameters(hyperparameters, self.dim)
+            self.hyperparameter_refit_every,
+            check_hyperparameters(hyperparameters, self.dim),
+            self.tie_threshold,
         )
         self.events: list[TREvent] = []
 
@@ -133,7 +143,7 @@ class TuRPBO(PreferenceOptimizer):
 
     # ------------------------------------------------------------------ model
     def _fit(self) -> Surrogate:
-        return self._refitter.refit(self.train_inputs(), self.comparisons())
+        return self._refitter.refit(self.train_inputs(), self.comparisons(), self.ties())
 
     # ------------------------------------------------------------------ ask / tell hooks
     def _propose(self, remaining: int) -> Ask:
@@ -191,7 +201,7 @@ class TuRPBO(PreferenceOptimizer):
         )
 
     def _on_step_complete(
-        self, candidates: tuple[Candidate, ...], outcomes: tuple[Outcome, ...]
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
         inc = self._require_incumbent()
         if self._restart_pending:
@@ -204,13 +214,20 @@ class TuRPBO(PreferenceOptimizer):
         center = self._center_id
         if self._challenge_duel is not None:
             for o in outcomes:
-                if {o.winner, o.loser} == {self._challenge_duel.first, inc}:
-                    if o.winner == center:
+                pair = {o.winner, o.loser} if isinstance(o, Outcome) else {o.first, o.second}
+                if pair == {self._challenge_duel.first, inc}:
+                    # a "can't tell" answer keeps the global incumbent
+                    if isinstance(o, Outcome) and o.winner == center:
                         self._set_incumbent(o.winner)
                     self._center_challenged = True
             self._challenge_duel = None
         new_ids = {c.id for c in candidates}
-        winners = sorted(o.winner for o in outcomes if o.winner in new_ids and o.loser == center)
+        # a "can't tell" answer against the center is no success (it counts as a failure)
+        winners = sorted(
+            o.winner
+            for o in outcomes
+            if isinstance(o, Outcome) and o.winner in new_ids and o.loser == center
+        )
         success = bool(winners)
         if success:
             was_king = center == self._incumbent_id

@@ -14,6 +14,11 @@ Two forms, the same noise model:
   duel id and the two values only, whichever process answers it and in whichever order;
 * :class:`PreferenceOracle`, one generator for a sequence of comparisons (deterministic given
   the seed and the call order), for studies of the noise model itself.
+
+"Can't tell": a :class:`DuelOracle` with ``indifference = q > 0`` answers neither (a tie) when
+``|y_first - y_second| < q * value_range``, a judge who cannot separate close outcomes (the
+ordinal model of :mod:`localpbo_core.surrogate.ordinal` with an unknown threshold). The same
+two normals are drawn, so the decisive answers are those of ``q = 0``.
 """
 
 from __future__ import annotations
@@ -85,19 +90,46 @@ class DuelOracle:
         problem: supplies ``value_range``.
         noise_fraction: noise std as a fraction of ``problem.value_range`` (>= 0).
         run_seed: the run seed.
+        indifference: answer "can't tell" when ``|y_first - y_second|`` is below this
+            fraction of ``problem.value_range`` (>= 0; 0 never, the paper's oracle).
     """
 
     def __init__(
-        self, problem: Problem, noise_fraction: float = DEFAULT_NOISE_FRACTION, run_seed: int = 0
+        self,
+        problem: Problem,
+        noise_fraction: float = DEFAULT_NOISE_FRACTION,
+        run_seed: int = 0,
+        indifference: float = 0.0,
     ) -> None:
         self.noise_fraction = float(noise_fraction)
         self.noise_std = noise_std(problem, noise_fraction)
         self.run_seed = check_int("run_seed", run_seed, minimum=0)
+        self.indifference = check_float("indifference", indifference, minimum=0.0)
+        self.tie_width = 0.0
+        if self.indifference > 0:
+            value_range = float(problem.value_range)
+            if not (math.isfinite(value_range) and value_range > 0):
+                raise SettingError(
+                    "indifference",
+                    f"needs a positive finite value range; problem {problem.name!r} has "
+                    f"{value_range!r}",
+                )
+            self.tie_width = self.indifference * value_range
 
     def first_wins(self, duel_id: int, value_first: float, value_second: float) -> bool:
         """True if the first candidate of duel ``duel_id`` is preferred (eq. (3))."""
         rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
         y_first, y_second = _noisy_pair(self.noise_std, rng, value_first, value_second)
+        return bool(y_first > y_second)
+
+    def judge(self, duel_id: int, value_first: float, value_second: float) -> bool | None:
+        """True if the first candidate is preferred, False if the second, None for "can't
+        tell" (``|y_first - y_second| < indifference * value_range``; never when
+        ``indifference`` is 0, where this is :meth:`first_wins`)."""
+        rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
+        y_first, y_second = _noisy_pair(self.noise_std, rng, value_first, value_second)
+        if abs(y_first - y_second) < self.tie_width:
+            return None
         return bool(y_first > y_second)
 
 

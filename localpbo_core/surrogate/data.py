@@ -4,6 +4,8 @@ The GP works on the *unique* input locations ``X = [x_i]_{i=1..P}`` that appear 
 (paper Sec. 4, "Prior"). Points closer than ``atol`` in every coordinate are merged (as BoTorch's
 ``consolidate_duplicates`` with ``atol=1e-4``); duels that become self-duels after merging carry
 no information and are dropped (BoTorch keeps them and reads them as a loss, which is wrong).
+"Can't tell" answers (ties, see :mod:`.ordinal`) are kept as duel rows flagged in ``tie``; a
+tie between two points that merge is dropped like any self-duel.
 """
 
 from __future__ import annotations
@@ -22,14 +24,17 @@ class DuelData:
 
     Attributes:
         X: unique points ``(p, d)`` float64.
-        winners, losers: ``(m,)`` long indices into ``X`` (no self-duels).
+        winners, losers: ``(m,)`` long indices into ``X`` (no self-duels); for a tie row
+            they are the duel's first and second point.
         index_map: ``(n,)`` long, original row of the input ``X`` -> row of the unique ``X``.
+        tie: ``(m,)`` bool, True for "can't tell" rows.
     """
 
     X: Tensor
     winners: Tensor
     losers: Tensor
     index_map: Tensor
+    tie: Tensor
 
 
 def validate_points(X: object, name: str = "X", dim: int | None = None) -> Tensor:
@@ -49,23 +54,30 @@ def validate_points(X: object, name: str = "X", dim: int | None = None) -> Tenso
     return X
 
 
-def validate_comparisons(comparisons: object, n: int) -> Tensor:
-    """Check an ``(m, 2)`` long tensor of ``[winner, loser]`` indices in ``[0, n)``."""
+def validate_comparisons(
+    comparisons: object, n: int, name: str = "comparisons", min_rows: int = 1
+) -> Tensor:
+    """Check an ``(m, 2)`` long tensor of ``[winner, loser]`` indices in ``[0, n)`` (``name``
+    ``"ties"``: ``[first, second]`` rows), ``m >= min_rows``."""
     if not isinstance(comparisons, Tensor):
-        raise ValueError(f"comparisons must be a torch.Tensor, got {type(comparisons).__name__}")
+        raise ValueError(f"{name} must be a torch.Tensor, got {type(comparisons).__name__}")
     if comparisons.dtype != torch.long:
-        raise ValueError(f"comparisons must have dtype torch.long, got {comparisons.dtype}")
-    if comparisons.ndim != 2 or comparisons.shape[1] != 2 or comparisons.shape[0] < 1:
+        raise ValueError(f"{name} must have dtype torch.long, got {comparisons.dtype}")
+    if comparisons.ndim != 2 or comparisons.shape[1] != 2 or comparisons.shape[0] < min_rows:
         raise ValueError(
-            f"comparisons must have shape (m, 2) with m >= 1, got {tuple(comparisons.shape)}"
+            f"{name} must have shape (m, 2) with m >= {min_rows}, got {tuple(comparisons.shape)}"
         )
     if (comparisons < 0).any() or (comparisons >= n).any():
-        raise ValueError(f"comparisons contain indices out of range [0, {n})")
+        raise ValueError(f"{name} contain indices out of range [0, {n})")
     return comparisons
 
 
-def consolidate(X: Tensor, comparisons: Tensor, atol: float = DUPLICATE_ATOL) -> DuelData:
+def consolidate(
+    X: Tensor, comparisons: Tensor, atol: float = DUPLICATE_ATOL, ties: Tensor | None = None
+) -> DuelData:
     """Merge points within ``atol`` (each coordinate) of an earlier point, drop self-duels.
+    ``ties`` ``(k, 2)`` are "can't tell" rows ``[first, second]``, appended after the
+    comparisons (flagged in ``DuelData.tie``).
 
     Raises:
         ValueError: if no duel between distinct points remains.
@@ -84,9 +96,20 @@ def consolidate(X: Tensor, comparisons: Tensor, atol: float = DUPLICATE_ATOL) ->
     new_index = torch.full((n,), -1, dtype=torch.long)
     new_index[keep_t] = torch.arange(len(keep))
     index_map = new_index[rep]
-    w = index_map[comparisons[:, 0]]
-    l_ = index_map[comparisons[:, 1]]
+    rows = comparisons
+    tie = torch.zeros(comparisons.shape[0], dtype=torch.bool)
+    if ties is not None and ties.shape[0]:
+        rows = torch.cat([comparisons, ties])
+        tie = torch.cat([tie, torch.ones(ties.shape[0], dtype=torch.bool)])
+    w = index_map[rows[:, 0]]
+    l_ = index_map[rows[:, 1]]
     valid = w != l_
     if not valid.any():
         raise ValueError("comparisons contain no duel between distinct points (all self-duels)")
-    return DuelData(X=X[keep_t].clone(), winners=w[valid], losers=l_[valid], index_map=index_map)
+    return DuelData(
+        X=X[keep_t].clone(),
+        winners=w[valid],
+        losers=l_[valid],
+        index_map=index_map,
+        tie=tie[valid],
+    )

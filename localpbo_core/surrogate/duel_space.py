@@ -21,6 +21,10 @@ With ``m`` duels and ``p`` points, every Newton step costs one ``m x m`` Cholesk
 whitened form's ``m p^2`` product plus a ``p x p`` Cholesky, and the gradient needs no
 ``p x p`` factorisation at all: the faster form whenever ``m <= p`` (e.g. TuRPBO, where every
 new point is dueled once). Exact probit only (no BoTorch clamp).
+
+With "can't tell" answers (an :class:`.ordinal.Ordinal`), ``log Phi(z_n)`` becomes each duel's
+ordinal log-likelihood (Chu & Ghahramani 2005; :mod:`.ordinal`), ``W = diag(-d^2 log p / dg^2)``
+and ``c'_n / sqrt(2)`` the derivative of that weight in ``g_n``; the formulas are unchanged.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from .laplace import (
     probit_terms,
     probit_terms_of_differences,
 )
+from .ordinal import Ordinal, duel_log_likelihood
 
 
 def duel_covariance(K: Tensor, winners: Tensor, losers: Tensor) -> Tensor:
@@ -47,17 +52,21 @@ def duel_covariance(K: Tensor, winners: Tensor, losers: Tensor) -> Tensor:
     return KH[winners] - KH[losers]
 
 
-def dual_from_utilities(f: Tensor, winners: Tensor, losers: Tensor) -> Tensor:
+def dual_from_utilities(
+    f: Tensor, winners: Tensor, losers: Tensor, ordinal: Ordinal | None = None
+) -> Tensor:
     """``a = grad log p(D | g)`` at ``g = H f``: the mode's fixed-point relation, used to start
     Newton from utilities (e.g. a previous fit's posterior mean)."""
-    t = probit_terms(f, winners, losers, None)
+    t = probit_terms(f, winners, losers, None, ordinal)
     return t.hazard / SQRT2
 
 
-def _psi(a: Tensor, g: Tensor) -> Tensor:
+def _psi(a: Tensor, g: Tensor, ordinal: Ordinal | None = None) -> Tensor:
     """R&W eq. 3.12 negated: ``0.5 a^T g - sum_n log Phi(g_n / sqrt(2))`` with ``g = M a``
-    (``S`` of paper Sec. 4 at ``f = K H^T a``)."""
-    return 0.5 * (a @ g) - torch.special.log_ndtr(g / SQRT2).sum()
+    (``S`` of paper Sec. 4 at ``f = K H^T a``); the ordinal log-likelihood with ties."""
+    if ordinal is None or ordinal.is_plain:
+        return 0.5 * (a @ g) - torch.special.log_ndtr(g / SQRT2).sum()
+    return 0.5 * (a @ g) - duel_log_likelihood(g, ordinal.tie, ordinal.threshold).sum()
 
 
 @dataclass
@@ -72,10 +81,10 @@ class DuelNewton:
     terms: ProbitTerms
 
 
-def newton_step(M: Tensor, g: Tensor) -> DuelNewton:
+def newton_step(M: Tensor, g: Tensor, ordinal: Ordinal | None = None) -> DuelNewton:
     """One Newton step of R&W Alg. 3.1 from ``g``: ``b = W g + grad log p``,
     ``a = b - W^1/2 B^{-1} W^1/2 M b``; returns the new ``a``, ``M a`` and ``chol(B)`` at ``g``."""
-    t = probit_terms_of_differences(g, None)
+    t = probit_terms_of_differences(g, None, ordinal)
     c = hessian_weights(t)
     sw = c.clamp_min(0.0).sqrt()
     B = sw.unsqueeze(-1) * M * sw
@@ -89,7 +98,11 @@ def newton_step(M: Tensor, g: Tensor) -> DuelNewton:
 
 @torch.no_grad()
 def find_mode(
-    M: Tensor, a0: Tensor, tol: float = 1e-11, max_iter: int = 200
+    M: Tensor,
+    a0: Tensor,
+    tol: float = 1e-11,
+    max_iter: int = 200,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, int]:
     """Newton's method with backtracking on ``psi`` (convex in ``a``) from ``a0``.
 
@@ -98,14 +111,14 @@ def find_mode(
     """
     a = a0.clone()
     g = M @ a
-    psi = _psi(a, g)
+    psi = _psi(a, g, ordinal)
     for it in range(1, max_iter + 1):
-        step = newton_step(M, g)
+        step = newton_step(M, g, ordinal)
         da, dg = step.a - a, step.g - g
         alpha = 1.0
         for _ in range(40):
             a_c, g_c = a + alpha * da, g + alpha * dg
-            psi_c = _psi(a_c, g_c)
+            psi_c = _psi(a_c, g_c, ordinal)
             if torch.isfinite(psi_c) and psi_c <= psi + 1e-12 * psi.abs():
                 break
             alpha *= 0.5
@@ -118,7 +131,9 @@ def find_mode(
 
 
 @torch.no_grad()
-def log_evidence_and_duel_gradient(M: Tensor, a_hat: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+def log_evidence_and_duel_gradient(
+    M: Tensor, a_hat: Tensor, ordinal: Ordinal | None = None
+) -> tuple[Tensor, Tensor, Tensor]:
     """Laplace log evidence (Chu & Ghahramani 2005, eq. 12) and ``G_M = dE/dM`` (module
     docstring) from a converged dual ``a_hat``.
 
@@ -126,9 +141,9 @@ def log_evidence_and_duel_gradient(M: Tensor, a_hat: Tensor) -> tuple[Tensor, Te
     mode and one more Newton step gives the ``a1`` where ``psi`` is evaluated (error
     ``O(|a1 - a_hat|^2)``). Returns ``(log_evidence, a1, G_M)``.
     """
-    step = newton_step(M, M @ a_hat)
+    step = newton_step(M, M @ a_hat, ordinal)
     a1, LB, sw, t = step.a, step.LB, step.sqrt_w, step.terms
-    psi = _psi(a1, step.g)
+    psi = _psi(a1, step.g, ordinal)
     value = -psi.clamp_min(0.0) - torch.log(torch.diagonal(LB)).sum()
 
     # R = W^1/2 B^{-1} W^1/2 and diag(Sigma) = diag(M) - colsum(C^2), C = L_B^{-1} W^1/2 M

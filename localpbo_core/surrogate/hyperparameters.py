@@ -9,7 +9,9 @@ with scipy's L-BFGS-B stopping rules as BoTorch's ``fit_gpytorch_mll`` uses them
 re-solved by warm-started Newton at every evaluation (to ``INNER_NEWTON_TOL``); exact gradients
 in closed form from :func:`laplace.log_evidence_and_kernel_gradient` and
 :func:`kernel_hyperparameter_gradient` (autograd through :func:`laplace.log_evidence` is kept as
-the reference, ``analytic_gradient=False``).
+the reference, ``analytic_gradient=False``). With "can't tell" answers every function takes
+the :class:`.ordinal.Ordinal` likelihood (ties and the threshold ``eps``, held fixed) and the
+evidence is that of the ordinal model (Chu & Ghahramani 2005).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from .duel_space import (
 )
 from .kernel import se_kernel
 from .laplace import find_map, log_evidence, log_evidence_and_kernel_gradient
+from .ordinal import Ordinal
 
 LENGTHSCALE_BOUNDS = (0.05, 0.5)
 # BoTorch constrains the outputscale to [0.005, 200], but its SmoothedBoxPrior(0.01, 100) has a
@@ -106,6 +109,7 @@ def evaluate(
     jitter: float,
     z_limit: float | None,
     with_prior: bool = True,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Objective ``log evidence + log hyperprior`` (differentiable in the hyperparameters).
 
@@ -114,8 +118,10 @@ def evaluate(
     K = se_kernel(X, X, lengthscale, outputscale)
     L = cholesky_with_jitter(K, outputscale, jitter)
     v0 = torch.linalg.solve_triangular(L.detach(), f_init.detach().unsqueeze(-1), upper=False)
-    v_hat, _ = find_map(L.detach(), winners, losers, v0.squeeze(-1), z_limit, tol=INNER_NEWTON_TOL)
-    ev, v1, _ = log_evidence(v_hat, L, winners, losers, z_limit)
+    v_hat, _ = find_map(
+        L.detach(), winners, losers, v0.squeeze(-1), z_limit, tol=INNER_NEWTON_TOL, ordinal=ordinal
+    )
+    ev, v1, _ = log_evidence(v_hat, L, winners, losers, z_limit, ordinal)
     if with_prior:
         ev = ev + log_hyperprior(lengthscale, outputscale)
     return ev, v1, L
@@ -153,6 +159,7 @@ def evaluate_with_gradient(
     z_limit: float | None,
     with_prior: bool = True,
     form: str = "auto",
+    ordinal: Ordinal | None = None,
 ) -> tuple[float, Tensor, Tensor, Tensor]:
     """:func:`evaluate` with the analytic gradient instead of autograd: the objective
     ``log evidence + log hyperprior`` and its gradient w.r.t. ``log lengthscale`` and
@@ -180,16 +187,20 @@ def evaluate_with_gradient(
             j = jitter
             Kj = K + (j * outputscale) * torch.eye(K.shape[0], dtype=K.dtype)
             M = duel_covariance(Kj, winners, losers)
-            a0 = dual_from_utilities(f_init, winners, losers)
-            a_hat, _, _ = find_mode(M, a0, tol=INNER_NEWTON_TOL)
-            ev, a1, G_M = log_evidence_and_duel_gradient(M, a_hat)
+            a0 = dual_from_utilities(f_init, winners, losers, ordinal)
+            a_hat, _, _ = find_mode(M, a0, tol=INNER_NEWTON_TOL, ordinal=ordinal)
+            ev, a1, G_M = log_evidence_and_duel_gradient(M, a_hat, ordinal)
             G = kernel_gradient_from_duels(G_M, winners, losers, K.shape[0])
             f_hat = a1 @ (Kj[winners] - Kj[losers])  # K H^T a
         else:
             L, j = _cholesky_and_jitter(K, outputscale, jitter)
             v0 = torch.linalg.solve_triangular(L, f_init.unsqueeze(-1), upper=False).squeeze(-1)
-            v_hat, _ = find_map(L, winners, losers, v0, z_limit, tol=INNER_NEWTON_TOL)
-            ev, v1, G = log_evidence_and_kernel_gradient(v_hat, L, winners, losers, z_limit)
+            v_hat, _ = find_map(
+                L, winners, losers, v0, z_limit, tol=INNER_NEWTON_TOL, ordinal=ordinal
+            )
+            ev, v1, G = log_evidence_and_kernel_gradient(
+                v_hat, L, winners, losers, z_limit, ordinal
+            )
             f_hat = L @ v1
         grad_ls, grad_os = kernel_hyperparameter_gradient(X, lengthscale, outputscale, K, G, j)
     value = float(ev)
@@ -235,6 +246,7 @@ def learn_hyperparameters(
     solver: str = "carried-bfgs",
     curvature0: np.ndarray | None = None,
     form: str = "auto",
+    ordinal: Ordinal | None = None,
 ) -> FitResult:
     """Maximise evidence + hyperprior over ``log`` hyperparameters within the bounds;
     hyperparameters not learned stay fixed. Every evaluation warm-starts Newton from the
@@ -278,7 +290,16 @@ def learn_hyperparameters(
         if use_analytic:
             ls, os_ = unpack(torch.tensor(x, dtype=torch.float64))
             val, g_ls, g_os, f_hat = evaluate_with_gradient(
-                X, winners, losers, ls, float(os_), state.f, jitter, z_limit, form=form
+                X,
+                winners,
+                losers,
+                ls,
+                float(os_),
+                state.f,
+                jitter,
+                z_limit,
+                form=form,
+                ordinal=ordinal,
             )
             parts = ([-g_ls] if learn_lengthscale else []) + (
                 [-g_os.reshape(1)] if learn_outputscale else []
@@ -287,7 +308,9 @@ def learn_hyperparameters(
         else:
             theta = torch.tensor(x, dtype=torch.float64, requires_grad=True)
             ls, os_ = unpack(theta)
-            value, v1, L = evaluate(X, winners, losers, ls, os_, state.f, jitter, z_limit)
+            value, v1, L = evaluate(
+                X, winners, losers, ls, os_, state.f, jitter, z_limit, ordinal=ordinal
+            )
             if value.requires_grad:
                 (-value).backward()
             val = float(value.detach())
@@ -331,10 +354,14 @@ def learn_hyperparameters(
         L, j = _cholesky_and_jitter(K, os_, jitter)
         # f is one Newton step from the converged MAP: a final solve only polishes it.
         v0 = torch.linalg.solve_triangular(L, state.best_f.unsqueeze(-1), upper=False)
-        v_hat, _ = find_map(L, winners, losers, v0.squeeze(-1), z_limit)
+        v_hat, _ = find_map(L, winners, losers, v0.squeeze(-1), z_limit, ordinal=ordinal)
         value = state.best_value
         if j != jitter:  # K needed more jitter than the search used: report its evidence
-            value = float(evaluate(X, winners, losers, ls, os_, L @ v_hat, jitter, z_limit)[0])
+            value = float(
+                evaluate(X, winners, losers, ls, os_, L @ v_hat, jitter, z_limit, ordinal=ordinal)[
+                    0
+                ]
+            )
     return FitResult(
         lengthscale=ls.detach().clone(),
         outputscale=float(os_),

@@ -12,6 +12,13 @@ well conditioned (eigenvalues >= 1), so the Newton step
 The Laplace log evidence (Chu & Ghahramani 2005, eq. 12; BoTorch
 ``PairwiseLaplaceMarginalLogLikelihood``) is ``-S(f_hat) - 0.5 logdet(I + K C)`` with
 ``det(I + K C) = det(B)``.
+
+"Can't tell" answers: every function takes an optional :class:`.ordinal.Ordinal` (which duels
+are ties, and the indifference threshold ``eps``). Decisive duels then have
+``z_n = (g_n - eps) / sqrt(2)`` and ties the interval likelihood of :mod:`.ordinal`; everything
+above holds with ``log Phi(z_n)`` replaced by the per-duel log-likelihood, the gradient
+``hazard_n / sqrt(2)`` by ``dlog p_n / dg_n`` and eq. (8)'s ``c_n`` by ``-d^2 log p_n / dg_n^2``
+(all concave in ``g_n``). ``None`` (or no tie with ``eps = 0``) is the paper's probit exactly.
 """
 
 from __future__ import annotations
@@ -23,6 +30,8 @@ import torch
 from scipy.linalg.blas import dsyrk
 from torch import Tensor
 
+from .ordinal import Ordinal, tie_terms
+
 SQRT2 = math.sqrt(2.0)
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -30,21 +39,40 @@ _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 @dataclass
 class ProbitTerms:
     """``z_n``, ``log Phi(z_n)`` and the hazard ``phi(z_n) / Phi(z_n)`` of every duel;
-    ``active`` is False where BoTorch's clamp of ``z`` is active."""
+    ``active`` is False where BoTorch's clamp of ``z`` is active.
+
+    With an :class:`.ordinal.Ordinal` likelihood, ``log_cdf`` is each duel's log-likelihood,
+    ``hazard / sqrt(2)`` its derivative in ``g``, and ``weight`` / ``weight_slope`` hold
+    ``c_n = -d^2 log p_n / dg_n^2`` and ``sqrt(2) dc_n / dg_n`` (None: the probit formulas of
+    :func:`hessian_weights` and :func:`hessian_weight_slope` in ``z``)."""
 
     z: Tensor
     log_cdf: Tensor
     hazard: Tensor
     active: Tensor
+    weight: Tensor | None = None
+    weight_slope: Tensor | None = None
 
 
-def probit_terms(f: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None) -> ProbitTerms:
+def probit_terms(
+    f: Tensor,
+    winners: Tensor,
+    losers: Tensor,
+    z_limit: float | None,
+    ordinal: Ordinal | None = None,
+) -> ProbitTerms:
     """z-scores of eq. (5) "likelihood"; ``z_limit`` clamps z as BoTorch does (None = exact)."""
-    return probit_terms_of_differences(f[winners] - f[losers], z_limit)
+    return probit_terms_of_differences(f[winners] - f[losers], z_limit, ordinal)
 
 
-def probit_terms_of_differences(g: Tensor, z_limit: float | None) -> ProbitTerms:
+def probit_terms_of_differences(
+    g: Tensor, z_limit: float | None, ordinal: Ordinal | None = None
+) -> ProbitTerms:
     """:func:`probit_terms` from the utility differences ``g_n = f(x_n^+) - f(x_n^-)``."""
+    if ordinal is not None and not ordinal.is_plain:
+        if z_limit is not None:
+            raise ValueError("ties and tie_threshold > 0 need the exact probit (z_limit=None)")
+        return _ordinal_terms(g, ordinal)
     z = g / SQRT2
     if z_limit is not None:
         active = z.detach().abs() < z_limit
@@ -56,12 +84,34 @@ def probit_terms_of_differences(g: Tensor, z_limit: float | None) -> ProbitTerms
     return ProbitTerms(z=z, log_cdf=log_cdf, hazard=hazard, active=active)
 
 
+def _ordinal_terms(g: Tensor, ordinal: Ordinal) -> ProbitTerms:
+    """:class:`ProbitTerms` of the ordinal likelihood of :mod:`.ordinal`: the probit of
+    ``(g - eps) / sqrt(2)`` for decisive duels, the interval likelihood for ties."""
+    z = (g - ordinal.threshold) / SQRT2
+    log_cdf = torch.special.log_ndtr(z)
+    hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
+    weight = 0.5 * hazard * (hazard + z)
+    slope = 0.5 * hazard * (1.0 - (z + hazard) * (z + 2.0 * hazard))
+    tie = ordinal.tie
+    if bool(tie.any()):
+        tt = tie_terms(g, ordinal.threshold)
+        log_cdf = torch.where(tie, tt.log_lik, log_cdf)
+        hazard = torch.where(tie, SQRT2 * tt.d1, hazard)
+        weight = torch.where(tie, tt.weight, weight)
+        slope = torch.where(tie, SQRT2 * tt.weight_slope, slope)
+    active = torch.ones_like(z, dtype=torch.bool)
+    return ProbitTerms(z, log_cdf, hazard, active, weight=weight, weight_slope=slope)
+
+
 def hessian_weights(t: ProbitTerms, jacobian: bool = False) -> Tensor:
     """Per-duel weights ``c_n = 0.5 (hazard_n^2 + z_n hazard_n)`` of eq. (8) (sigma_n = 1).
 
     With BoTorch's clamp they are evaluated at the clamped ``z`` (BoTorch's ``likelihood_hess``);
     ``jacobian=True`` instead gives the true Jacobian of the clamped gradient (zero weight for
-    clamped duels), which Newton's method needs. Without a clamp both are eq. (8)."""
+    clamped duels), which Newton's method needs. Without a clamp both are eq. (8). With an
+    ordinal likelihood they are its ``-d^2 log p_n / dg_n^2`` (``t.weight``)."""
+    if t.weight is not None:
+        return t.weight
     c = 0.5 * t.hazard * (t.hazard + t.z)
     if jacobian:
         c = torch.where(t.active, c, torch.zeros_like(c))
@@ -107,15 +157,25 @@ def whitened_precision(L: Tensor, winners: Tensor, losers: Tensor, c: Tensor) ->
 
 
 def objective(
-    v: Tensor, L: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None
+    v: Tensor,
+    L: Tensor,
+    winners: Tensor,
+    losers: Tensor,
+    z_limit: float | None,
+    ordinal: Ordinal | None = None,
 ) -> Tensor:
     """``S`` of paper Sec. 4 ("Posterior") in whitened form: ``-log p(D | L v) + 0.5 v^T v``."""
-    t = probit_terms(L @ v, winners, losers, z_limit)
+    t = probit_terms(L @ v, winners, losers, z_limit, ordinal)
     return -t.log_cdf.sum() + 0.5 * (v * v).sum()
 
 
 def newton_step(
-    v: Tensor, L: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None
+    v: Tensor,
+    L: Tensor,
+    winners: Tensor,
+    losers: Tensor,
+    z_limit: float | None,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """One full Newton step on ``S(v)`` (on the clamped gradient equation if ``z_limit``);
     returns ``(v_new, gradient of S at v, chol(B))``.
@@ -124,7 +184,7 @@ def newton_step(
     Differentiable in ``L`` (hence in the kernel hyperparameters) and in ``v``.
     """
     f = L @ v
-    t = probit_terms(f, winners, losers, z_limit)
+    t = probit_terms(f, winners, losers, z_limit, ordinal)
     c = hessian_weights(t, jacobian=True)
     HL = L[winners] - L[losers]  # rows h_n^T L
     LB = torch.linalg.cholesky(precision_from_rows(HL, c))
@@ -145,6 +205,7 @@ def find_map(
     z_limit: float | None = None,
     tol: float = 1e-11,
     max_iter: int = 200,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, int]:
     """Newton's method with backtracking for the whitened MAP ``v_hat`` (``f_hat = L v_hat``).
 
@@ -158,14 +219,14 @@ def find_map(
 
     def merit(vv: Tensor) -> Tensor:
         if z_limit is None:
-            return objective(vv, L, winners, losers, None)
+            return objective(vv, L, winners, losers, None, ordinal)
         t = probit_terms(L @ vv, winners, losers, z_limit)
         g = vv - (L[winners] - L[losers]).transpose(0, 1) @ (t.hazard / SQRT2)
         return (g * g).sum()
 
     m = merit(v)
     for it in range(1, max_iter + 1):
-        v_new, _, _ = newton_step(v, L, winners, losers, z_limit)
+        v_new, _, _ = newton_step(v, L, winners, losers, z_limit, ordinal)
         step = v_new - v
         alpha = 1.0
         for _ in range(40):
@@ -183,7 +244,12 @@ def find_map(
 
 
 def log_evidence(
-    v_hat: Tensor, L: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None = None
+    v_hat: Tensor,
+    L: Tensor,
+    winners: Tensor,
+    losers: Tensor,
+    z_limit: float | None = None,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Differentiable Laplace log evidence ``-S(f_hat) - 0.5 logdet(I + K C)`` (Chu &
     Ghahramani 2005, eq. 12), through ONE Newton step from the (detached) converged ``v_hat``.
@@ -193,9 +259,9 @@ def log_evidence(
     in the log-determinant) then has exact first derivatives w.r.t. the hyperparameters in ``L``.
     Returns ``(log_evidence, v1, chol(B) at v1)``.
     """
-    v1, _, _ = newton_step(v_hat.detach(), L, winners, losers, z_limit)
+    v1, _, _ = newton_step(v_hat.detach(), L, winners, losers, z_limit, ordinal)
     f1 = L @ v1
-    t = probit_terms(f1, winners, losers, z_limit)
+    t = probit_terms(f1, winners, losers, z_limit, ordinal)
     S = -t.log_cdf.sum() + 0.5 * (v1 * v1).sum()
     B = whitened_precision(L, winners, losers, hessian_weights(t))
     LB = torch.linalg.cholesky(B)
@@ -207,6 +273,8 @@ def hessian_weight_slope(t: ProbitTerms) -> Tensor:
     """``dc_n / dz_n`` of the weights of eq. (8): with ``h = phi(z) / Phi(z)`` and
     ``dh/dz = -h (z + h)``, ``c = 0.5 h (h + z)`` gives ``dc/dz = 0.5 h (1 - (z + h)(z + 2h))``.
     Zero where BoTorch's clamp is active (the clamped ``c`` is constant there)."""
+    if t.weight_slope is not None:
+        return t.weight_slope
     h, z = t.hazard, t.z
     slope = 0.5 * h * (1.0 - (z + h) * (z + 2.0 * h))
     return torch.where(t.active, slope, torch.zeros_like(slope))
@@ -220,7 +288,12 @@ def _scatter_rows(Y: Tensor, winners: Tensor, losers: Tensor, p: int) -> Tensor:
 
 @torch.no_grad()
 def log_evidence_and_kernel_gradient(
-    v_hat: Tensor, L: Tensor, winners: Tensor, losers: Tensor, z_limit: float | None = None
+    v_hat: Tensor,
+    L: Tensor,
+    winners: Tensor,
+    losers: Tensor,
+    z_limit: float | None = None,
+    ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Laplace log evidence ``E = -S(f_hat) - 0.5 logdet(I + K C)`` (Chu & Ghahramani 2005,
     eq. 12) and its analytic gradient ``G = dE/dK`` (symmetric ``(p, p)``, ``dE = tr(G dK)``),
@@ -250,16 +323,16 @@ def log_evidence_and_kernel_gradient(
         # B_J = B: factor once at v_hat, take the Newton step with it, and evaluate logdet and
         # the gradient there (v_hat is converged, so v1 - v_hat and its effect are O(tol^2)).
         f0 = L @ v_hat
-        t = probit_terms(f0, winners, losers, None)
+        t = probit_terms(f0, winners, losers, None, ordinal)
         c = hessian_weights(t)
         HL = L[winners] - L[losers]
         LB = LB_J = torch.linalg.cholesky(precision_from_rows(HL, c))
         rhs = HL.transpose(0, 1) @ (c * (f0[winners] - f0[losers]) + t.hazard / SQRT2)
         v1 = torch.cholesky_solve(rhs.unsqueeze(-1), LB).squeeze(-1)
-        log_cdf = probit_terms(L @ v1, winners, losers, None).log_cdf
+        log_cdf = probit_terms(L @ v1, winners, losers, None, ordinal).log_cdf
     else:
-        v1, _, LB_J = newton_step(v_hat, L, winners, losers, z_limit)
-        t = probit_terms(L @ v1, winners, losers, z_limit)
+        v1, _, LB_J = newton_step(v_hat, L, winners, losers, z_limit, ordinal)
+        t = probit_terms(L @ v1, winners, losers, z_limit, ordinal)
         c = hessian_weights(t)
         HL = L[winners] - L[losers]
         LB = torch.linalg.cholesky(precision_from_rows(HL, c))

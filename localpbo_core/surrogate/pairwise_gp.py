@@ -4,6 +4,10 @@ Laplace-approximated pairwise GP with probit likelihood (sigma_n = 1, BoTorch co
 ARD squared-exponential ``ScaleKernel`` prior, and the joint posterior of ``f``, ``grad f`` and
 ``vec(hess f)`` at any point (paper eqs. (10) "joint derivative predictive" and (11) "general
 covariance block").
+
+"Can't tell" answers (``ties``) enter through the ordinal probit of :mod:`.ordinal`
+(Chu & Ghahramani 2005) with the indifference threshold ``tie_threshold``; 0 and no ties is
+the paper's model exactly.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from .hyperparameters import (
 )
 from .kernel import kernel_derivatives, prior_block, se_kernel, se_kernel_exact
 from .laplace import hessian_weights, likelihood_hessian, probit_terms, whitened_precision
+from .ordinal import Ordinal
 from .protocol import Surrogate
 
 # The start of a cold fit: BoTorch's initial values under the paper's constraints (raw
@@ -80,7 +85,9 @@ class PairwiseGPSurrogate(Surrogate):
     ``log_marginal_likelihood`` (Laplace evidence + log hyperpriors at the fit),
     ``winners``/``losers`` (duels as indices into ``train_inputs``), ``index_map`` (row of the
     fitted ``X`` -> row of ``train_inputs``), ``eps_reg``, ``z_limit``, ``jitter``,
-    ``likelihood_hessian`` (``C`` of eq. (8)), ``chol_K``, ``chol_B``.
+    ``likelihood_hessian`` (``C`` of eq. (8)), ``chol_K``, ``chol_B``, ``tie`` (``(m,)`` bool:
+    rows of ``winners``/``losers`` that are "can't tell" answers, first/second) and
+    ``tie_threshold`` (the ordinal model's ``eps``).
     """
 
     def __init__(
@@ -99,8 +106,14 @@ class PairwiseGPSurrogate(Surrogate):
         n_evaluations: int = 0,
         index_map: Tensor | None = None,
         fit_curvature: np.ndarray | None = None,
+        tie: Tensor | None = None,
+        tie_threshold: float = 0.0,
     ) -> None:
         self.train_inputs = train_inputs
+        self.tie = torch.zeros_like(winners, dtype=torch.bool) if tie is None else tie
+        self.tie_threshold = float(tie_threshold)
+        ordinal = Ordinal(self.tie, self.tie_threshold)
+        self.ordinal: Ordinal | None = None if ordinal.is_plain else ordinal
         self.index_map = torch.arange(train_inputs.shape[0]) if index_map is None else index_map
         self.winners = winners
         self.losers = losers
@@ -121,7 +134,7 @@ class PairwiseGPSurrogate(Surrogate):
         self._alpha = torch.linalg.solve_triangular(
             L.transpose(0, 1), v_hat.unsqueeze(-1), upper=True
         ).squeeze(-1)
-        t = probit_terms(self.utility, winners, losers, z_limit)
+        t = probit_terms(self.utility, winners, losers, z_limit, self.ordinal)
         self._probit = t
         # B = I + L^T C_hat L with C_hat = C + eps_reg I (paper Sec. 4)
         B = whitened_precision(L, winners, losers, hessian_weights(t))
@@ -152,12 +165,15 @@ class PairwiseGPSurrogate(Surrogate):
         maxiter: int = 200,
         solver: str = "carried-bfgs",
         form: str = "auto",
+        ties: Tensor | None = None,
+        tie_threshold: float = 0.0,
     ) -> PairwiseGPSurrogate:
         """Fit the surrogate to duels.
 
         Args:
             X: ``(n, d)`` float64 points in ``[0, 1]^d``.
-            comparisons: ``(m, 2)`` long ``[winner_index, loser_index]`` rows into ``X``.
+            comparisons: ``(m, 2)`` long ``[winner_index, loser_index]`` rows into ``X`` (may
+                be empty, ``(0, 2)``, when ``ties`` has rows).
             lengthscale: None (learn, within ``[0.05, 0.5]``), a float or a ``(d,)`` tensor
                 (fixed, the paper's "within-model" setting).
             outputscale: None (learn, within ``[0.005, 100]``) or a fixed float.
@@ -178,18 +194,36 @@ class PairwiseGPSurrogate(Surrogate):
             form: how the Laplace approximation is computed while learning: ``"auto"``
                 (default), ``"duels"`` or ``"whitened"``, see
                 :func:`~localpbo_core.surrogate.hyperparameters.evaluate_with_gradient`.
+            ties: ``(k, 2)`` long ``[first, second]`` rows of "can't tell" answers, or None.
+            tie_threshold: the indifference threshold ``eps >= 0`` of the ordinal likelihood
+                (:mod:`.ordinal`); decisive duels then have ``P = Phi((g - eps) / sqrt(2))``.
+                Ties need ``eps > 0``. 0 without ties is the paper's probit exactly.
         """
         X = validate_points(X, "X")
         d = X.shape[1]
-        comparisons = validate_comparisons(comparisons, X.shape[0])
+        n_ties = 0
+        if ties is not None:
+            ties = validate_comparisons(ties, X.shape[0], "ties", min_rows=0)
+            n_ties = int(ties.shape[0])
+        comparisons = validate_comparisons(comparisons, X.shape[0], min_rows=0 if n_ties else 1)
+        eps = float(tie_threshold)
+        if not math.isfinite(eps) or eps < 0:
+            raise ValueError(f"tie_threshold must be finite and >= 0, got {tie_threshold}")
+        if n_ties and eps == 0:
+            raise ValueError("ties need tie_threshold > 0 (a tie has probability 0 at eps = 0)")
+        if eps > 0 and z_limit is not None:
+            raise ValueError("tie_threshold > 0 needs the exact probit (z_limit=None)")
         ls_fixed = _check_lengthscale(lengthscale, d)
         os_fixed = _check_outputscale(outputscale)
         if eps_reg < 0 or not math.isfinite(eps_reg):
             raise ValueError(f"eps_reg must be finite and >= 0, got {eps_reg}")
         if warm_start is not None and warm_start.train_inputs.shape[1] != d:
             raise ValueError("warm_start was fitted in a different dimension")
-        data = consolidate(X, comparisons, duplicate_atol)
+        data = consolidate(X, comparisons, duplicate_atol, ties)
         Xu = data.X
+        ordinal: Ordinal | None = Ordinal(data.tie, eps)
+        if ordinal is not None and ordinal.is_plain:
+            ordinal = None
 
         if ls_fixed is not None:
             ls0 = ls_fixed
@@ -227,6 +261,7 @@ class PairwiseGPSurrogate(Surrogate):
                 solver=solver,
                 form=form,
                 curvature0=curvature0,
+                ordinal=ordinal,
             )
 
         res = learn(ls0, os0, f_init, None if warm_start is None else warm_start.fit_curvature)
@@ -259,6 +294,8 @@ class PairwiseGPSurrogate(Surrogate):
             n_evaluations=res.n_evaluations,
             index_map=data.index_map,
             fit_curvature=curvature,
+            tie=data.tie,
+            tie_threshold=eps,
         )
 
     @property
@@ -404,11 +441,8 @@ class PairwiseGPSurrogate(Surrogate):
         cov = prior - self._quad(kq.transpose(0, 1).unsqueeze(0))[0]
         return mean, cov
 
-    def preference_probability(self, x: Tensor, x2: Tensor) -> Tensor:
-        """``P(x > x2)`` under the Laplace posterior with probit noise sigma_n = 1 (eq.
-        likelihood marginalised over the Gaussian posterior):
-        ``Phi((mu1 - mu2) / sqrt(2 + var1 + var2 - 2 cov12))``. 0-d for ``(d,)`` inputs,
-        ``(N,)`` for ``(N, d)`` inputs (pairwise rows)."""
+    def _difference(self, x: Tensor, x2: Tensor) -> tuple[Tensor, Tensor, bool]:
+        """Posterior mean and ``2 + variance`` of ``f(x) - f(x2)`` (the probit noise added)."""
         xb, single = _as_batch(x, self.dim)
         x2b, single2 = _as_batch(x2, self.dim, "x2")
         if xb.shape != x2b.shape:
@@ -419,8 +453,29 @@ class PairwiseGPSurrogate(Surrogate):
         prior = se_kernel_exact(both, both, self.lengthscale, self.outputscale)
         cov = prior - self._quad(k.transpose(-1, -2))  # (N, 2, 2)
         var = 2.0 + cov[:, 0, 0] + cov[:, 1, 1] - 2.0 * cov[:, 0, 1]
-        prob = torch.special.ndtr((mean[:, 0] - mean[:, 1]) / var.clamp_min(1e-300).sqrt())
-        return prob[0] if single and single2 else prob
+        return mean[:, 0] - mean[:, 1], var.clamp_min(1e-300), single and single2
+
+    def tie_probability(self, x: Tensor, x2: Tensor) -> Tensor:
+        """``P(x ~ x2)`` ("can't tell") of the ordinal model (:mod:`.ordinal`) marginalised
+        over the Gaussian posterior of ``g = f(x) - f(x2)``:
+        ``Phi((eps - mu_g) / s) - Phi((-eps - mu_g) / s)``, ``s^2 = 2 + var_g``; zero at
+        ``tie_threshold = 0``. Shapes as :meth:`preference_probability`."""
+        mu, var, single = self._difference(x, x2)
+        sd = var.sqrt()
+        eps = self.tie_threshold
+        prob = torch.special.ndtr((eps - mu) / sd) - torch.special.ndtr((-eps - mu) / sd)
+        prob = prob.clamp_min(0.0)
+        return prob[0] if single else prob
+
+    def preference_probability(self, x: Tensor, x2: Tensor) -> Tensor:
+        """``P(x > x2)`` under the Laplace posterior with probit noise sigma_n = 1 (eq.
+        likelihood marginalised over the Gaussian posterior):
+        ``Phi((mu1 - mu2 - eps) / sqrt(2 + var1 + var2 - 2 cov12))`` with the indifference
+        threshold ``eps = tie_threshold`` (0: the paper's eq.). 0-d for ``(d,)`` inputs,
+        ``(N,)`` for ``(N, d)`` inputs (pairwise rows)."""
+        mu, var, single = self._difference(x, x2)
+        prob = torch.special.ndtr((mu - self.tie_threshold) / var.sqrt())
+        return prob[0] if single else prob
 
     # ------------------------------------------------------------------ sampling
     def sample_paths(

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from .ordinal import Ordinal
 from .sampling import SamplePaths
 
 
@@ -47,6 +48,11 @@ class Surrogate(Protocol):
         jitter: relative diagonal jitter added to ``K`` (``K + jitter s I``).
         fit_curvature: ``(h, h)`` curvature of the hyperparameter objective at the fit
             (``h`` learned log-hyperparameters), or None; a warm-started fit starts from it.
+        tie: ``(m,)`` bool: duel rows that are "can't tell" answers (then ``winners[n]``,
+            ``losers[n]`` are the duel's first and second point).
+        tie_threshold: the indifference threshold ``eps >= 0`` of the ordinal likelihood
+            (:mod:`.ordinal`); 0 is the paper's probit.
+        ordinal: the :class:`.ordinal.Ordinal` likelihood, or None for the paper's probit.
     """
 
     train_inputs: Tensor
@@ -58,6 +64,9 @@ class Surrogate(Protocol):
     eps_reg: float
     z_limit: float | None
     jitter: float
+    tie: Tensor
+    tie_threshold: float
+    ordinal: Ordinal | None
     fit_curvature: np.ndarray | None
 
     @property

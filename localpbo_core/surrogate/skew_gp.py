@@ -65,6 +65,19 @@ posterior. The same sequential draw, started from no duel, is the cold start. Wh
 and points are appended and the hyperparameters are unchanged, ``K`` and the Cholesky factor
 of ``M`` are extended by the new rows (``O(m^2)`` per duel) instead of refactorised.
 
+"Can't tell" answers (the ordinal likelihood of :mod:`.ordinal`, Chu & Ghahramani 2005, with
+the indifference threshold ``eps > 0``): a decisive duel is the event ``g_k >= eps`` and a tie
+the two-sided truncation ``|g_k| < eps``, i.e. two linear constraints; the posterior of ``g``
+is ``N(0, M)`` restricted to the intersection of these slabs and half-spaces, and ``f | g`` is
+unchanged. LinESS then needs the general bookkeeping: a decisive coordinate
+``r_k cos(t - phi_k) > eps`` holds on the arc ``|t - phi_k| < arccos(eps / r_k)``, which
+contains ``t = 0``, so the decisive constraints still give one interval ``I`` (at ``eps = 0``
+exactly the orthant's). A tie removes the two arcs where ``|r_k cos(t - phi_k)| >= eps``; the
+angle is drawn uniformly on ``I`` and, while a tie is violated, ``I`` is shrunk towards 0 (the
+shrinkage of elliptical slice sampling, Murray, Adams and MacKay 2010, which leaves the
+restricted normal invariant). The sequential extension draws a tie's coordinate from its
+conditional truncated to ``(-eps, eps)``.
+
 All randomness comes from the ``numpy.random.Generator`` passed in; nothing touches a global
 random state.
 """
@@ -84,6 +97,8 @@ DEFAULT_NOISE_STD = 1.0
 _MAX_ANGLE_DRAWS = 64
 #: LinESS steps whose random directions are drawn in one block.
 _BLOCK_STEPS = 256
+#: Shrinkage draws of one LinESS step with ties before the step keeps its current state.
+_MAX_SHRINK_DRAWS = 200
 
 
 def se_kernel_np(
@@ -115,12 +130,81 @@ def truncated_standard_normal_above(a: np.ndarray, rng: np.random.Generator) -> 
     return np.maximum(u, np.nextafter(a, np.inf))
 
 
+def truncated_standard_normal_between(
+    a: np.ndarray, b: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """Draws of ``u ~ N(0, 1)`` conditioned on ``a < u < b`` (elementwise, ``a < b``) by
+    inversion in log space on the side of the Gaussian where the interval lies (the draw is
+    mirrored when ``a + b > 0``), accurate in the far tails."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    flip = a + b > 0.0
+    lo = np.where(flip, -b, a)
+    hi = np.where(flip, -a, b)
+    v = rng.random(a.shape)
+    log_hi = log_ndtr(hi)
+    w = np.exp(log_ndtr(lo) - log_hi)  # Phi(lo) / Phi(hi) in [0, 1)
+    x = ndtri_exp(log_hi + np.log(w + v * (1.0 - w)))
+    x = np.minimum(np.maximum(x, np.nextafter(lo, np.inf)), np.nextafter(hi, -np.inf))
+    return np.where(flip, -x, x)
+
+
+def _feasible(out: np.ndarray, threshold: float, tie: np.ndarray | None) -> np.ndarray:
+    """Rows of ``out`` ``(C, m)`` inside every constraint: ``g > eps`` (decisive), ``|g| < eps``
+    (tie)."""
+    if tie is None:
+        return np.asarray((out > threshold).all(axis=1))
+    return np.asarray(np.where(tie, np.abs(out) < threshold, out > threshold).all(axis=1))
+
+
+def _lin_ess_step_ordinal(
+    g: np.ndarray,
+    nu: np.ndarray,
+    u: np.ndarray,
+    rng: np.random.Generator,
+    threshold: float,
+    tie: np.ndarray,
+) -> np.ndarray:
+    """LinESS with decisive constraints ``g_k > eps`` and ties ``|g_k| < eps`` (module
+    docstring): the exact interval of the decisive arcs, then shrinkage towards 0 for ties."""
+    dec = ~tie
+    phi = np.arctan2(nu, g)
+    r = np.hypot(g, nu)
+    half = np.arccos(np.clip(threshold / np.maximum(r, 1e-300), -1.0, 1.0))
+    if dec.any():
+        lo = (phi[:, dec] - half[:, dec]).max(axis=1)
+        hi = (phi[:, dec] + half[:, dec]).min(axis=1)
+    else:
+        lo = np.full(g.shape[0], -math.pi)
+        hi = np.full(g.shape[0], math.pi)
+    lo = np.minimum(lo, 0.0)
+    hi = np.maximum(hi, 0.0)
+    out = g.copy()
+    todo = np.arange(g.shape[0])
+    t = lo + (hi - lo) * u
+    for _ in range(_MAX_SHRINK_DRAWS):
+        prop = g[todo] * np.cos(t)[:, None] + nu[todo] * np.sin(t)[:, None]
+        ok = _feasible(prop, threshold, tie)
+        out[todo[ok]] = prop[ok]
+        keep = ~ok
+        todo, t = todo[keep], t[keep]
+        if todo.size == 0:
+            break
+        neg = t < 0.0
+        lo[todo[neg]] = t[neg]
+        hi[todo[~neg]] = t[~neg]
+        t = lo[todo] + (hi[todo] - lo[todo]) * rng.random(todo.size)
+    return out  # a chain still in ``todo`` keeps its state (the angle t = 0)
+
+
 def lin_ess_step(
     g: np.ndarray,
     chol_M: np.ndarray,
     rng: np.random.Generator,
     nu: np.ndarray | None = None,
     u: np.ndarray | None = None,
+    threshold: float = 0.0,
+    tie: np.ndarray | None = None,
 ) -> np.ndarray:
     """One LinESS step for ``N(0, M)`` restricted to ``{g > 0}`` (see the module docstring).
 
@@ -130,15 +214,20 @@ def lin_ess_step(
         rng: source of every random draw.
         nu: optional pre-drawn ``(C, m)`` rows ``~ N(0, M)`` (else drawn from ``rng``).
         u: optional pre-drawn ``(C,)`` uniforms for the angles (else drawn from ``rng``).
+        threshold, tie: the ordinal constraints (``g_k > eps``, ties ``|g_k| < eps``; ``tie``
+            ``(m,)`` bool); the default is the orthant ``g > 0``.
 
     Returns:
-        ``(C, m)`` new states, every entry > 0.
+        ``(C, m)`` new states, every entry > 0 (inside every constraint).
     """
     C = g.shape[0]
     if nu is None:
         nu = rng.standard_normal(g.shape) @ chol_M.T  # rows ~ N(0, M)
     if u is None:
         u = np.asarray(rng.random(C))
+    if threshold > 0.0 or tie is not None:
+        ties = np.zeros(g.shape[1], dtype=bool) if tie is None else tie
+        return _lin_ess_step_ordinal(g, nu, u, rng, threshold, ties)
     phi = np.arctan2(nu, g)  # in (-pi/2, pi/2) since g > 0
     lo = phi.max(axis=1) - 0.5 * math.pi
     width = phi.min(axis=1) + 0.5 * math.pi - lo
@@ -162,11 +251,17 @@ def lin_ess_step(
 
 
 def sequential_extension(
-    g: np.ndarray, chol_M: np.ndarray, start: int, rng: np.random.Generator
+    g: np.ndarray,
+    chol_M: np.ndarray,
+    start: int,
+    rng: np.random.Generator,
+    threshold: float = 0.0,
+    tie: np.ndarray | None = None,
 ) -> np.ndarray:
     """Extend states ``g`` ``(C, start)`` to ``(C, m)`` by drawing coordinates
     ``start..m-1`` one by one from their conditionals under ``N(0, M)`` truncated to > 0
-    (``chol_M`` is the ``(m, m)`` factor of the extended ``M``)."""
+    (``chol_M`` is the ``(m, m)`` factor of the extended ``M``); with the ordinal constraints,
+    to ``> eps`` (decisive) or ``(-eps, eps)`` (``tie[k]``)."""
     C = g.shape[0]
     m = chol_M.shape[0]
     u = np.zeros((C, m))
@@ -178,11 +273,21 @@ def sequential_extension(
     out[:, :start] = g
     for k in range(start, m):
         cond_mean = u[:, :k] @ chol_M[k, :k]
-        a = -cond_mean / chol_M[k, k]
+        if tie is not None and tie[k]:
+            a = (-threshold - cond_mean) / chol_M[k, k]
+            b = (threshold - cond_mean) / chol_M[k, k]
+            u[:, k] = truncated_standard_normal_between(a, b, rng)
+            out[:, k] = np.clip(
+                cond_mean + chol_M[k, k] * u[:, k],
+                np.nextafter(-threshold, 0.0),
+                np.nextafter(threshold, 0.0),
+            )
+            continue
+        a = (threshold - cond_mean) / chol_M[k, k] if threshold > 0.0 else -cond_mean / chol_M[k, k]
         u[:, k] = truncated_standard_normal_above(a, rng)
         gk = cond_mean + chol_M[k, k] * u[:, k]
         # strictly positive by construction; guard the rounding of the sum
-        out[:, k] = np.where(gk > 0.0, gk, np.nextafter(0.0, 1.0))
+        out[:, k] = np.where(gk > threshold, gk, np.nextafter(threshold, np.inf))
     return out
 
 
@@ -243,9 +348,17 @@ class DuelPosteriorChain:
     Args:
         noise_std: ``sigma`` of the likelihood (noise variance ``2 sigma^2`` per duel).
         num_chains: independent chains run side by side (HB-EI uses one).
+        tie_threshold: the indifference threshold ``eps >= 0`` of the ordinal likelihood
+            (decisive duels ``g_k > eps``, ties ``|g_k| < eps``; module docstring).
     """
 
-    def __init__(self, noise_std: float = DEFAULT_NOISE_STD, num_chains: int = 1) -> None:
+    def __init__(
+        self, noise_std: float = DEFAULT_NOISE_STD, num_chains: int = 1, tie_threshold: float = 0.0
+    ) -> None:
+        if not math.isfinite(tie_threshold) or tie_threshold < 0:
+            raise ValueError(f"tie_threshold must be finite and >= 0, got {tie_threshold}")
+        self.tie_threshold = float(tie_threshold)
+        self.tie: np.ndarray | None = None
         if not math.isfinite(noise_std) or noise_std <= 0:
             raise ValueError(f"noise_std must be finite and positive, got {noise_std}")
         if num_chains < 1:
@@ -278,9 +391,11 @@ class DuelPosteriorChain:
         lengthscale: np.ndarray,
         outputscale: float,
         rng: np.random.Generator,
+        tie: np.ndarray | None = None,
     ) -> bool:
         """Target the posterior of duels ``(winners[k], losers[k])`` over points ``X`` ``(n, d)``
-        under the kernel ``(lengthscale (d,), outputscale)``; warm-starts the state.
+        under the kernel ``(lengthscale (d,), outputscale)``; warm-starts the state. ``tie``
+        ``(m,)`` bool marks "can't tell" rows (then first/second; needs ``tie_threshold > 0``).
 
         Returns True if the previous duels are a prefix of the new ones (the state was extended
         and kept), False if the chain was started afresh (sequential draw from no duel).
@@ -290,6 +405,16 @@ class DuelPosteriorChain:
         losers = np.asarray(losers, dtype=np.int64)
         ls = np.asarray(lengthscale, dtype=np.float64).reshape(-1)
         s = float(outputscale)
+        if tie is not None:
+            tie = np.asarray(tie, dtype=bool).reshape(-1)
+            if tie.shape != winners.shape:
+                raise ValueError("tie must have one entry per duel")
+            if tie.any() and self.tie_threshold <= 0:
+                raise ValueError("ties need tie_threshold > 0")
+            if not tie.any():
+                tie = None
+        old_tie = np.zeros(self.num_duels, dtype=bool) if self.tie is None else self.tie
+        new_tie = np.zeros(winners.shape[0], dtype=bool) if tie is None else tie
         n0, m0 = self.X.shape[0], self.num_duels
         same_prefix = (
             self.X.shape[1:] == X.shape[1:]
@@ -298,6 +423,7 @@ class DuelPosteriorChain:
             and np.array_equal(X[:n0], self.X)
             and np.array_equal(winners[:m0], self.winners)
             and np.array_equal(losers[:m0], self.losers)
+            and np.array_equal(new_tie[:m0], old_tie)
         )
         same_kernel = same_prefix and np.array_equal(ls, self.lengthscale) and s == self.outputscale
         # --- the kernel matrix: extend by the new rows or recompute
@@ -320,10 +446,12 @@ class DuelPosteriorChain:
             chol = np.linalg.cholesky(M) if M.size else np.empty((0, 0))
             self.full_factorizations += 1
         # --- the state
+        eps = self.tie_threshold
         if same_prefix:
-            g = sequential_extension(self.g, chol, m0, rng)
+            g = sequential_extension(self.g, chol, m0, rng, eps, tie)
         else:
-            g = sequential_extension(np.empty((self.num_chains, 0)), chol, 0, rng)
+            g = sequential_extension(np.empty((self.num_chains, 0)), chol, 0, rng, eps, tie)
+        self.tie = tie
         self.X, self.winners, self.losers = X.copy(), winners.copy(), losers.copy()
         self.lengthscale, self.outputscale = ls.copy(), s
         self.K, self.chol_M, self.g = K, chol, g
@@ -369,7 +497,15 @@ class DuelPosteriorChain:
             nus = rng.standard_normal((b * C, m)) @ self.chol_M.T
             us = rng.random((b, C))
             for i in range(b):
-                g = lin_ess_step(g, self.chol_M, rng, nus[i * C : (i + 1) * C], us[i])
+                g = lin_ess_step(
+                    g,
+                    self.chol_M,
+                    rng,
+                    nus[i * C : (i + 1) * C],
+                    us[i],
+                    self.tie_threshold,
+                    self.tie,
+                )
             done += b
         self.g = g
         return g

@@ -32,6 +32,11 @@ Everything is done in *duel space* (dimension ``m + 1``, the number of duels), e
 
 ``K`` here is the fit's ``K + jitter`` (its Cholesky ``chol_K``); the new points get the
 relative jitter ``surrogate.jitter``, as a full refit with fixed hyperparameters would.
+
+"Can't tell" answers: with the ordinal likelihood of :mod:`.ordinal` (the fit's ties and
+``tie_threshold``, and optionally a virtual duel that is itself a tie, ``virtual_tie``),
+``log Phi``, ``hazard / sqrt(2)`` and ``c_n`` above become each row's log-likelihood, its
+derivative in ``g`` and ``-d^2 log p / dg^2``; nothing else changes.
 """
 
 from __future__ import annotations
@@ -43,7 +48,8 @@ import torch
 from torch import Tensor
 
 from .kernel import kernel_derivatives, se_kernel_exact
-from .laplace import SQRT2
+from .laplace import SQRT2, probit_terms_of_differences
+from .ordinal import Ordinal
 from .protocol import Surrogate
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
@@ -75,6 +81,20 @@ def _probit(z: Tensor) -> tuple[Tensor, Tensor]:
     log_cdf = torch.special.log_ndtr(z)
     hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
     return log_cdf, hazard
+
+
+def _row_terms(hf: Tensor, tie: Tensor | None, threshold: float) -> tuple[Tensor, Tensor, Tensor]:
+    """Per-row ``log p``, ``dlog p / dg`` and the weight ``c`` at ``g = hf`` ``(B, m+1)``:
+    the paper's probit (eq. (5), weights eq. (8)) when ``tie`` is None, else the ordinal
+    likelihood with the tie mask ``tie`` ``(B, m+1)``."""
+    if tie is None:
+        z = hf / SQRT2
+        log_cdf, hazard = _probit(z)
+        return log_cdf, hazard / SQRT2, 0.5 * hazard * (hazard + z)
+    t = probit_terms_of_differences(hf.reshape(-1), None, Ordinal(tie.reshape(-1), threshold))
+    assert t.weight is not None  # an ordinal likelihood always carries its weights
+    shape = hf.shape
+    return t.log_cdf.reshape(shape), (t.hazard / SQRT2).reshape(shape), t.weight.reshape(shape)
 
 
 def _chol_solve(b: Tensor, L: Tensor) -> Tensor:
@@ -117,6 +137,7 @@ def virtual_refit(
     tol: float = 1e-10,
     max_iter: int = 100,
     chord_iter: int = 30,
+    virtual_tie: Tensor | None = None,
 ) -> VirtualFit:
     """Laplace MAP of ``D`` plus one virtual duel per batch element, fixed hyperparameters.
 
@@ -130,6 +151,8 @@ def virtual_refit(
         max_iter: exact Newton iteration cap.
         chord_iter: cap of the chord phase (it also stops once it contracts by less than 4x
             per iteration).
+        virtual_tie: ``(B,)`` bool, True where the virtual duel is a "can't tell" answer
+            (needs ``surrogate.tie_threshold > 0``); None: all decisive.
     """
     if surrogate.z_limit is not None:
         raise ValueError("virtual_refit: only the exact probit likelihood (z_limit=None)")
@@ -147,6 +170,13 @@ def virtual_refit(
         raise ValueError("virtual duels must be between two distinct points of [X; Z]")
     wo, lo = surrogate.winners, surrogate.losers
     m = wo.shape[0]
+    eps = float(surrogate.tie_threshold)
+    tie_rows: Tensor | None = None
+    if virtual_tie is not None and bool(virtual_tie.any()) and eps <= 0:
+        raise ValueError("virtual_refit: a virtual tie needs tie_threshold > 0")
+    if eps > 0:
+        vt = torch.zeros(Bn, dtype=torch.bool) if virtual_tie is None else virtual_tie
+        tie_rows = torch.cat([surrogate.tie.expand(Bn, m), vt.reshape(Bn, 1)], dim=1)
     L = surrogate.chol_K
     HL = L[wo] - L[lo]
     # --- Q = H K H^T: shared old block, per-element virtual row
@@ -164,20 +194,19 @@ def virtual_refit(
     Q[:, m, :m] = q
     Q[:, m, m] = q_nn
     # --- warm start: the current MAP extended by the posterior mean (exact, see docstring)
-    z_fit = (surrogate.utility[wo] - surrogate.utility[lo]) / SQRT2
-    hz_fit = _probit(z_fit)[1]
+    g_fit = (surrogate.utility[wo] - surrogate.utility[lo]).unsqueeze(0)
+    _, d1_fit, c_fit = _row_terms(g_fit, None if tie_rows is None else tie_rows[:1, :m], eps)
     alpha = torch.zeros(Bn, m + 1, dtype=torch.float64)
-    alpha[:, :m] = hz_fit / SQRT2
+    alpha[:, :m] = d1_fit[0]
 
     def state(a: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         ao, an = a[:, :m], a[:, m]
         hf = torch.cat(
             [ao @ Qoo + q * an.unsqueeze(-1), ((q * ao).sum(-1) + q_nn * an).unsqueeze(-1)], 1
         )  # H f = Q a
-        z = hf / SQRT2
-        log_cdf, hazard = _probit(z)
-        obj = -log_cdf.sum(-1) + 0.5 * (a * hf).sum(-1)  # S(f), f^T K^-1 f = a^T Q a
-        return hf, z, hazard, obj
+        log_lik, d1, c = _row_terms(hf, tie_rows, eps)
+        obj = -log_lik.sum(-1) + 0.5 * (a * hf).sum(-1)  # S(f), f^T K^-1 f = a^T Q a
+        return hf, d1, c, obj
 
     def backtrack(
         a: Tensor, step: Tensor, obj: Tensor
@@ -185,23 +214,23 @@ def virtual_refit(
         t = torch.ones(Bn, dtype=torch.float64)
         for _ in range(40):  # per-element backtracking on the convex objective S
             cand = a + t.unsqueeze(-1) * step
-            hf_c, z_c, hz_c, obj_c = state(cand)
+            hf_c, d1_c, c_c, obj_c = state(cand)
             bad = ~(torch.isfinite(obj_c) & (obj_c <= obj + 1e-12 * obj.abs()))
             if not bad.any():
                 break
             t = torch.where(bad, 0.5 * t, t)
-        return cand, hf_c, z_c, hz_c, obj_c
+        return cand, hf_c, d1_c, c_c, obj_c
 
     def converged(hf_new: Tensor, hf_old: Tensor) -> bool:
         change = (hf_new - hf_old).abs().amax(-1)
         return bool((change <= tol * (1.0 + hf_new.abs().amax(-1))).all())
 
-    hf, z, hazard, obj = state(alpha)
+    hf, d1, c, obj = state(alpha)
     # --- chord phase: Newton with the old duels' weights frozen at the fit's MAP, so that
     # M = [[A, u_b], [u_b^T, gamma_b]] has a SHARED block A = I + D0^1/2 Q_oo D0^1/2 and each
     # solve is one shared-factor solve plus a scalar Schur complement. Its fixed point is the
     # MAP (any PD weight matrix gives a convergent, line-searched descent step).
-    sc0 = (0.5 * hz_fit * (hz_fit + z_fit)).sqrt()
+    sc0 = c_fit[0].sqrt()
     LA = torch.linalg.cholesky(
         torch.eye(m, dtype=torch.float64) + sc0.unsqueeze(-1) * Qoo * sc0.unsqueeze(-2)
     )
@@ -210,10 +239,10 @@ def virtual_refit(
     sqWq = (sq * Wq).sum(-1)
     prev_change = torch.inf
     for _ in range(chord_iter):
-        c_new = 0.5 * hazard[:, m] * (hazard[:, m] + z[:, m])
+        c_new = c[:, m]
         scn = c_new.sqrt()
         sct = torch.cat([sc0.expand(Bn, m), scn.unsqueeze(-1)], 1)
-        beta = sct * sct * hf + hazard / SQRT2
+        beta = sct * sct * hf + d1
         qb, _, _, _ = state(beta)
         r = sct * qb
         Ainv_ro = _chol_solve(r[:, :m].transpose(0, 1), LA).transpose(0, 1)
@@ -222,7 +251,7 @@ def virtual_refit(
         yo = Ainv_ro - (scn * yn).unsqueeze(-1) * Wq
         step = beta - sct * torch.cat([yo, yn.unsqueeze(-1)], 1) - alpha
         hf_old = hf
-        alpha, hf, z, hazard, obj = backtrack(alpha, step, obj)
+        alpha, hf, d1, c, obj = backtrack(alpha, step, obj)
         if converged(hf, hf_old):
             break
         change = float((hf - hf_old).abs().max())
@@ -231,27 +260,26 @@ def virtual_refit(
         prev_change = change
     # --- exact Newton polish (normally one step); its last factor gives the covariance
 
-    def chol_m(hazard: Tensor, z: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        c = 0.5 * hazard * (hazard + z)  # eq. (8) weights
-        sc = c.sqrt()
+    def chol_m(c: Tensor) -> tuple[Tensor, Tensor]:
+        sc = c.sqrt()  # eq. (8) weights
         M = Q * sc.unsqueeze(-2)
         M.mul_(sc.unsqueeze(-1)).diagonal(dim1=-2, dim2=-1).add_(1.0)
-        return c, sc, torch.linalg.cholesky(M)
+        return sc, torch.linalg.cholesky(M)
 
     it = 0
-    c, sc, LM = chol_m(hazard, z)
+    sc, LM = chol_m(c)
     for it in range(1, max_iter + 1):  # noqa: B007 - reported in VirtualFit
-        beta = c * hf + hazard / SQRT2
+        beta = c * hf + d1
         qb = (Q @ beta.unsqueeze(-1)).squeeze(-1)
         corr = _chol_solve((sc * qb).unsqueeze(-1), LM).squeeze(-1)
         step = beta - sc * corr - alpha
         hf_old = hf
-        alpha, hf, z, hazard, obj = backtrack(alpha, step, obj)
+        alpha, hf, d1, c, obj = backtrack(alpha, step, obj)
         if converged(hf, hf_old):
             # Newton converges quadratically: the factor at the previous iterate differs from
             # the one at the MAP by O(change), below the requested tolerance.
             break
-        c, sc, LM = chol_m(hazard, z)
+        sc, LM = chol_m(c)
     return VirtualFit(
         alpha=alpha,
         sqrt_c=sc,

@@ -25,8 +25,8 @@ def fits(monkeypatch: pytest.MonkeyPatch) -> list:
     seen: list = []
     original = SurrogateRefitter.refit
 
-    def spy(self: SurrogateRefitter, X: np.ndarray, comps: np.ndarray):
-        fitted = original(self, X, comps)
+    def spy(self: SurrogateRefitter, X: np.ndarray, comps: np.ndarray, ties=None):
+        fitted = original(self, X, comps, ties)
         seen.append(fitted)
         return fitted
 

@@ -204,12 +204,12 @@ def test_hyperparameter_refit_every_k_holds_them_in_between(
     original = PairwiseGPSurrogate.fit.__func__
     fixed: list[bool] = []
 
-    def spy(cls, X, comparisons, lengthscale=None, outputscale=None, warm_start=None):
+    def spy(cls, X, comparisons, lengthscale=None, outputscale=None, warm_start=None, **kw):
         fixed.append(lengthscale is not None and outputscale is not None)
         if lengthscale is not None:
             assert torch.equal(lengthscale, warm_start.lengthscale)
             assert outputscale == warm_start.outputscale
-        return original(cls, X, comparisons, lengthscale, outputscale, warm_start)
+        return original(cls, X, comparisons, lengthscale, outputscale, warm_start, **kw)
 
     monkeypatch.setattr(PairwiseGPSurrogate, "fit", classmethod(spy))
     opt = make_optimizer("turpbo", 2, seed=4, budget=9, hyperparameter_refit_every=3)
