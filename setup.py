@@ -29,7 +29,7 @@ setup(
     },
     package_data={
         "localpbo_sims": ["data/ars/*.npz", "data/ars/LICENSE", "data/ars/README.md"],
-        "localpbo_ros": ["localhost_only.xml"],
+        "localpbo_ros": ["localhost_only.xml", "web/*.html", "web/*.js", "web/*.css"],
         "localpbo_core.experiments": ["*.yaml"],
     },
 )

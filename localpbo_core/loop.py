@@ -102,10 +102,11 @@ def run_session(
             trace.values[cand.id] = session.evaluate(cand)
             pending.append((cand.id, float(problem.true_value(cand.theta))))
         for duel in step.duels:
-            first_wins = oracle.first_wins(
-                duel.duel_id, trace.values[duel.first], trace.values[duel.second]
-            )
-            answer = Answer.decisive(duel, duel.first if first_wins else duel.second)
+            judged = oracle.judge(duel.duel_id, trace.values[duel.first], trace.values[duel.second])
+            if judged is None:
+                answer = Answer.indifferent(duel)
+            else:
+                answer = Answer.decisive(duel, duel.first if judged else duel.second)
             t0 = time.perf_counter()
             verdict = session.offer(answer)
             decide += time.perf_counter() - t0

@@ -17,20 +17,24 @@ optimizer through a :class:`Session`, so they cannot disagree:
 * **Acceptance** (:meth:`Session.offer`): an :class:`Answer` is checked against the pending
   duels before anything changes and gets a :class:`Verdict` with a :class:`Reason` code.
   The answers of one ask are told to the optimizer together, in duel-id order, once the last
-  one is accepted, so the order in which answers arrive never changes the run.
+  one is accepted, so the order in which answers arrive never changes the run. "Can't tell"
+  answers (``AnswerKind.INDIFFERENT``) are accepted iff the run's ``tie_threshold`` is > 0
+  (told as :class:`~localpbo_core.optimizers.base.Indifferent`), else refused with
+  ``UNSUPPORTED_KIND``.
 
 Same settings and the same answers therefore give bit-identical candidates on every path.
 """
 
 from __future__ import annotations
 
+import copy
 import enum
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from localpbo_core.optimizers.base import Candidate, Outcome
+from localpbo_core.optimizers.base import Candidate, DuelAnswer, Indifferent, Outcome
 from localpbo_core.optimizers.preference_optimizer import InvalidOutcome, PreferenceOptimizer
 from localpbo_core.seeds import duel_seed, episode_seed
 from localpbo_core.settings import RunSettings, SettingError
@@ -197,7 +201,8 @@ class Session:
 
     @property
     def n_duels(self) -> int:
-        """Accepted (decisive) answers so far."""
+        """Accepted answers so far (decisive and, with ``tie_threshold > 0``, "can't
+        tell")."""
         return len(self.accepted)
 
     @property
@@ -237,7 +242,12 @@ class Session:
         """
         from localpbo_core.problems import DuelOracle
 
-        return DuelOracle(self.problem, self.settings.noise_fraction, self.settings.seed)
+        return DuelOracle(
+            self.problem,
+            self.settings.noise_fraction,
+            self.settings.seed,
+            indifference=self.settings.indifference,
+        )
 
     def pending(self) -> tuple[DuelRequest, ...]:
         """Duels of the current ask not answered yet, by duel id."""
@@ -259,6 +269,18 @@ class Session:
         from localpbo_core.optimizers.recommendation import recommend
 
         return recommend(self.optimizer)
+
+    def fork(self) -> Session:
+        """An independent copy of the run's state: the optimizer is deep-copied, the problem
+        and settings (immutable for the run) are shared. Offering to or asking the copy never
+        changes this session (:mod:`localpbo_core.speculation`)."""
+        twin = copy.copy(self)
+        twin.optimizer = copy.deepcopy(self.optimizer)
+        twin.accepted = list(self.accepted)
+        twin._pending = dict(self._pending)
+        twin._step_answers = dict(self._step_answers)
+        twin._by_duel = dict(self._by_duel)
+        return twin
 
     # ------------------------------------------------------------------ ask / offer
     def ask(self) -> Step:
@@ -290,9 +312,17 @@ class Session:
             )
         if answer.kind is AnswerKind.FAILED:
             return Verdict(Reason.FAILED, answer.reason)
-        if answer.kind is not AnswerKind.DECISIVE:
+        if answer.kind is AnswerKind.INDIFFERENT:
+            if self.settings.tie_threshold <= 0:
+                return Verdict(
+                    Reason.UNSUPPORTED_KIND,
+                    "indifferent answers are not used (the run's tie_threshold is 0)",
+                )
+            if answer.winner is not None:
+                return Verdict(Reason.BAD_WINNER, "an indifferent answer names no winner")
+        elif answer.kind is not AnswerKind.DECISIVE:
             return Verdict(Reason.UNSUPPORTED_KIND, f"{answer.kind.value} answers are not used")
-        if answer.winner not in (duel.first, duel.second):
+        elif answer.winner not in (duel.first, duel.second):
             return Verdict(
                 Reason.BAD_WINNER, f"winner {answer.winner} is not in duel {duel.duel_id}"
             )
@@ -312,7 +342,9 @@ class Session:
         return Verdict(Reason.ACCEPTED)
 
 
-def _outcome(answer: Answer) -> Outcome:
+def _outcome(answer: Answer) -> DuelAnswer:
+    if answer.kind is AnswerKind.INDIFFERENT:
+        return Indifferent(answer.first, answer.second)
     assert answer.winner is not None and answer.loser is not None
     return Outcome(answer.winner, answer.loser)
 
@@ -352,6 +384,7 @@ def build_optimizer(settings: RunSettings, dim: int) -> PreferenceOptimizer:
             seed=settings.seed,
             budget=settings.budget,
             initial_design=settings.initial_design,
+            tie_threshold=settings.tie_threshold,
             **dict(settings.optimizer_options),
         )
     except SettingError as exc:

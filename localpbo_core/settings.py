@@ -11,7 +11,11 @@ Every path (``localpbo bench``, ``localpbo run``, the ROS nodes, ``replay --veri
   approximate value range (paper Sec. 6 and App. D.1, "Noise model");
 * ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (TuRPBO) on ``DEFAULT_PROBLEM`` (Swimmer);
 * the budget ``initial design + 10 d`` evaluations (:func:`default_budget`; 62 on
-  Hartmann 6, paper App. D.1 "Evaluation and comparison budgets").
+  Hartmann 6, paper App. D.1 "Evaluation and comparison budgets");
+* ``tie_threshold`` 0 (the paper's likelihood, no "can't tell" answers); a run whose judge
+  may answer "can't tell" should use ``DEFAULT_TIE_THRESHOLD = 0.25``, what ``--tie-threshold``
+  without a value gives (the smallest threshold of the tie ablation, never worse than
+  dropping ties there; ``localpbo_core.benchmarks.tie_ablation``).
 
 Bad settings raise :class:`~localpbo_core.validation.SettingError`, which carries the
 offending field and the reason as data (``exc.field``, ``exc.reason``), so a caller maps the
@@ -32,6 +36,7 @@ __all__ = [
     "DEFAULT_INITIAL_DESIGN",
     "DEFAULT_NOISE_FRACTION",
     "DEFAULT_PROBLEM",
+    "DEFAULT_TIE_THRESHOLD",
     "RunSettings",
     "SettingError",
     "default_budget",
@@ -42,6 +47,10 @@ DEFAULT_INITIAL_DESIGN = 2
 
 DEFAULT_NOISE_FRACTION = 0.1
 """Oracle noise std as a fraction of the problem's value range (paper App. D.1)."""
+
+DEFAULT_TIE_THRESHOLD = 0.25
+"""The indifference threshold ``eps`` to use when a judge may answer "can't tell" (latent
+units; :mod:`localpbo_core.surrogate.ordinal`). Runs default to 0, the paper's model."""
 
 DEFAULT_ALGORITHM = "turpbo"
 """The algorithm of ``localpbo run`` and of the optimizer node when none is chosen."""
@@ -80,6 +89,13 @@ class RunSettings:
             :func:`default_budget`.
         initial_design: shared random initial points (>= 2).
         noise_fraction: oracle noise std as a fraction of the problem's value range (>= 0).
+        tie_threshold: the indifference threshold ``eps >= 0`` of the ordinal likelihood
+            (latent-utility units, probit noise sigma_n = 1;
+            :mod:`localpbo_core.surrogate.ordinal`), passed to every optimizer; "can't tell"
+            answers are accepted iff it is > 0. 0 is the paper's model.
+        indifference: the simulated oracle answers "can't tell" when its noisy difference
+            is below this fraction of the problem's value range (>= 0; 0 never; > 0 needs
+            ``tie_threshold > 0``).
         optimizer_options: keyword options of the algorithm (e.g. ``batch_size``).
         problem_options: keyword options of the problem (e.g. ``episode_steps``).
 
@@ -95,6 +111,8 @@ class RunSettings:
     budget: int | None = None
     initial_design: int = DEFAULT_INITIAL_DESIGN
     noise_fraction: float = DEFAULT_NOISE_FRACTION
+    tie_threshold: float = 0.0
+    indifference: float = 0.0
     optimizer_options: Mapping[str, Any] = field(default_factory=dict)
     problem_options: Mapping[str, Any] = field(default_factory=dict)
 
@@ -117,8 +135,20 @@ class RunSettings:
         object.__setattr__(
             self, "noise_fraction", check_float("noise_fraction", self.noise_fraction, minimum=0.0)
         )
+        object.__setattr__(
+            self, "tie_threshold", check_float("tie_threshold", self.tie_threshold, minimum=0.0)
+        )
+        object.__setattr__(
+            self, "indifference", check_float("indifference", self.indifference, minimum=0.0)
+        )
+        if self.indifference > 0 and self.tie_threshold == 0:
+            raise SettingError(
+                "indifference",
+                "an oracle that answers 'can't tell' needs tie_threshold > 0 (else its "
+                "answers are refused)",
+            )
         options = _check_options("optimizer_options", self.optimizer_options)
-        for reserved in ("dim", "seed", "budget", "initial_design"):
+        for reserved in ("dim", "seed", "budget", "initial_design", "tie_threshold"):
             if reserved in options:
                 raise SettingError(
                     f"optimizer_options.{reserved}", "is a run setting of its own, not an option"

@@ -13,7 +13,7 @@ Unknown or duplicate keys are rejected.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import TypeVar
 
@@ -52,6 +52,14 @@ def _check_level(level: int, expected: int) -> None:
 def _check_distinct(first_id: int, second_id: int) -> None:
     if first_id == second_id:
         raise FieldError("second_id", R.INCONSISTENT, f"equals first_id ({first_id}): self-duel")
+
+
+def _check_seconds(value: object, field: str) -> float:
+    """A duration: finite and >= 0."""
+    seconds = check_finite(value, field)
+    if seconds < 0:
+        raise FieldError(field, R.OUT_OF_BOUNDS, f"is {seconds!r}, must be >= 0")
+    return seconds
 
 
 def _require(condition: bool, field: str, problem: str) -> None:
@@ -175,13 +183,18 @@ class EpisodeResult:
 class DuelRequest:
     """Ask the oracle to compare two evaluated candidates (optimizer → oracle).
 
-    Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (distinct candidate ids).
+    Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (distinct candidate ids);
+    optional ``decision_seconds`` (finite, >= 0): how long the optimizer took to decide the ask
+    this duel belongs to, from the answer that completed the previous ask (or from the start)
+    to the request — the wait a person judging the duels sees. It is a measurement, not part
+    of the duel: requests that differ only in it compare equal.
     """
 
     run_id: str
     duel_id: int
     first_id: int
     second_id: int
+    decision_seconds: float | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         check_run_id(self.run_id)
@@ -189,6 +202,12 @@ class DuelRequest:
         check_id(self.first_id, "first_id")
         check_id(self.second_id, "second_id")
         _check_distinct(self.first_id, self.second_id)
+        if self.decision_seconds is not None:
+            _check_seconds(self.decision_seconds, "decision_seconds")
+
+    def with_decision_seconds(self, seconds: float | None) -> DuelRequest:
+        """This request carrying ``seconds`` as its decision time."""
+        return replace(self, decision_seconds=seconds)
 
     def encode(self) -> DiagnosticStatus:
         """The ROS message."""
@@ -198,6 +217,8 @@ class DuelRequest:
             "first_id": str(self.first_id),
             "second_id": str(self.second_id),
         }
+        if self.decision_seconds is not None:
+            values["decision_seconds"] = format_float(self.decision_seconds)
         return make_status(DUEL_REQUEST_NAME, LEVEL_OK, "", values)
 
     @classmethod
@@ -208,15 +229,17 @@ class DuelRequest:
 
         def body() -> DuelRequest:
             level, _, v = read_status(msg, DUEL_REQUEST_NAME)
-            require_keys(v, ("run_id", "duel_id", "first_id", "second_id"))
+            require_keys(v, ("run_id", "duel_id", "first_id", "second_id"), ("decision_seconds",))
             _check_level(level, LEVEL_OK)
             run_id = check_run_id(v["run_id"])
             check_expected_run(run_id, expected_run_id)
+            seconds = v.get("decision_seconds")
             return cls(
                 run_id,
                 parse_id(v["duel_id"], "duel_id"),
                 parse_id(v["first_id"], "first_id"),
                 parse_id(v["second_id"], "second_id"),
+                None if seconds is None else parse_float(seconds, "decision_seconds"),
             )
 
         return guarded("duel_request", body)
@@ -236,7 +259,9 @@ class DuelOutcome:
 
     Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (echo the request), ``kind``
     (``decisive``|``indifferent``|``failed``); ``winner_id`` and ``loser_id`` iff decisive (a
-    permutation of first/second); ``reason`` (non-empty text) iff failed.
+    permutation of first/second); ``reason`` (non-empty text) iff failed; optional
+    ``answer_seconds`` (finite float >= 0, never when failed): how long a person took from
+    seeing the duel to answering it (set by ``judge_node``; absent for the simulated oracle).
     """
 
     run_id: str
@@ -247,6 +272,7 @@ class DuelOutcome:
     winner_id: int | None = None
     loser_id: int | None = None
     reason: str = ""
+    answer_seconds: float | None = None
 
     def __post_init__(self) -> None:
         check_run_id(self.run_id)
@@ -255,6 +281,18 @@ class DuelOutcome:
         check_id(self.second_id, "second_id")
         _check_distinct(self.first_id, self.second_id)
         object.__setattr__(self, "kind", _enum(OutcomeKind, self.kind, "kind"))
+        if self.answer_seconds is not None:
+            seconds = check_finite(self.answer_seconds, "answer_seconds")
+            if seconds < 0.0:
+                raise FieldError(
+                    "answer_seconds", R.OUT_OF_BOUNDS, f"must be >= 0, got {seconds!r}"
+                )
+            _require(
+                self.kind is not OutcomeKind.FAILED,
+                "answer_seconds",
+                "must be absent when failed",
+            )
+            object.__setattr__(self, "answer_seconds", seconds)
         if self.kind is OutcomeKind.DECISIVE:
             _require(
                 self.winner_id is not None and self.loser_id is not None,
@@ -281,7 +319,9 @@ class DuelOutcome:
             _require(not self.reason, "reason", f"must be empty when {self.kind}")
 
     @classmethod
-    def decisive(cls, request: DuelRequest, winner_id: int) -> DuelOutcome:
+    def decisive(
+        cls, request: DuelRequest, winner_id: int, *, answer_seconds: float | None = None
+    ) -> DuelOutcome:
         """``winner_id`` beat the other candidate of ``request``."""
         loser = request.second_id if winner_id == request.first_id else request.first_id
         return cls(
@@ -292,10 +332,13 @@ class DuelOutcome:
             OutcomeKind.DECISIVE,
             winner_id,
             loser,
+            answer_seconds=answer_seconds,
         )
 
     @classmethod
-    def indifferent(cls, request: DuelRequest) -> DuelOutcome:
+    def indifferent(
+        cls, request: DuelRequest, *, answer_seconds: float | None = None
+    ) -> DuelOutcome:
         """Neither candidate of ``request`` was preferred."""
         return cls(
             request.run_id,
@@ -303,6 +346,7 @@ class DuelOutcome:
             request.first_id,
             request.second_id,
             OutcomeKind.INDIFFERENT,
+            answer_seconds=answer_seconds,
         )
 
     @classmethod
@@ -333,6 +377,8 @@ class DuelOutcome:
         elif self.kind is OutcomeKind.FAILED:
             values["reason"] = self.reason
             level = LEVEL_ERROR
+        if self.answer_seconds is not None:
+            values["answer_seconds"] = format_float(self.answer_seconds)
         return make_status(DUEL_OUTCOME_NAME, level, self.reason, values)
 
     @classmethod
@@ -344,7 +390,13 @@ class DuelOutcome:
         def body() -> DuelOutcome:
             level, _, v = read_status(msg, DUEL_OUTCOME_NAME)
             base = ("run_id", "duel_id", "first_id", "second_id", "kind")
-            require_keys(v, base, ("winner_id", "loser_id", "reason"))
+            require_keys(v, base, ("winner_id", "loser_id", "reason", "answer_seconds"))
+            seconds = (
+                parse_float(v["answer_seconds"], "answer_seconds")
+                if "answer_seconds" in v
+                else None
+            )
+            timed = ("answer_seconds",) if seconds is not None else ()
             run_id = check_run_id(v["run_id"])
             check_expected_run(run_id, expected_run_id)
             duel_id = parse_id(v["duel_id"], "duel_id")
@@ -354,7 +406,7 @@ class DuelOutcome:
             if kind is OutcomeKind.DECISIVE:
                 require_keys(
                     v,
-                    (*base, "winner_id", "loser_id"),
+                    (*base, "winner_id", "loser_id", *timed),
                     context=" (must be absent when kind is decisive)",
                 )
                 _check_level(level, LEVEL_OK)
@@ -366,11 +418,16 @@ class DuelOutcome:
                     OutcomeKind.DECISIVE,
                     parse_id(v["winner_id"], "winner_id"),
                     parse_id(v["loser_id"], "loser_id"),
+                    answer_seconds=seconds,
                 )
             if kind is OutcomeKind.INDIFFERENT:
-                require_keys(v, base, context=" (must be absent when kind is indifferent)")
+                require_keys(
+                    v, (*base, *timed), context=" (must be absent when kind is indifferent)"
+                )
                 _check_level(level, LEVEL_OK)
-                return cls(run_id, duel_id, first, second, OutcomeKind.INDIFFERENT)
+                return cls(
+                    run_id, duel_id, first, second, OutcomeKind.INDIFFERENT, answer_seconds=seconds
+                )
             require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
             _check_level(level, LEVEL_ERROR)
             return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])

@@ -60,7 +60,7 @@ CANDIDATE = TopicSpec(
     "std_msgs/msg/Float64MultiArray",
     EVENT_QOS,
     "optimizer",
-    ("simulator",),
+    ("simulator", "judge"),
     "CandidateMsg",
     "θ to evaluate, task units; ids in layout.dim[0].label",
 )
@@ -71,7 +71,7 @@ EPISODE_RESULT = TopicSpec(
     "diagnostic_msgs/msg/DiagnosticStatus",
     EVENT_QOS,
     "simulator",
-    ("oracle",),
+    ("oracle", "judge"),
     "EpisodeResult",
     "episode return (or failure) of one candidate",
 )
@@ -82,7 +82,7 @@ DUEL_REQUEST = TopicSpec(
     "diagnostic_msgs/msg/DiagnosticStatus",
     EVENT_QOS,
     "optimizer",
-    ("oracle",),
+    ("oracle", "judge"),
     "DuelRequest",
     "compare candidates first_id and second_id",
 )
@@ -92,7 +92,7 @@ DUEL_OUTCOME = TopicSpec(
     DiagnosticStatus,
     "diagnostic_msgs/msg/DiagnosticStatus",
     EVENT_QOS,
-    "oracle",
+    "oracle or judge",
     ("optimizer",),
     "DuelOutcome",
     "winner/loser, indifferent or failed for one duel",
@@ -115,7 +115,7 @@ RUN_CONFIG = TopicSpec(
     "std_msgs/msg/String",
     STATE_QOS,
     "optimizer",
-    ("simulator", "oracle", "recorder"),
+    ("simulator", "oracle", "judge", "recorder"),
     "RunConfig",
     "JSON run configuration; latched",
 )

@@ -14,6 +14,7 @@ from .episode import (
     EnvSpec,
     EpisodeResult,
     EpisodeRunner,
+    Recording,
 )
 from .tasks import (
     TRUE_VALUE_SEEDS,
@@ -37,6 +38,7 @@ __all__ = [
     "EpisodeResult",
     "EpisodeRunner",
     "LinearPolicyTask",
+    "Recording",
     "TaskOptions",
     "ThetaFromWeights",
     "available_tasks",

@@ -19,6 +19,7 @@ which none of these observations use, so it is skipped.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -100,6 +101,44 @@ class EpisodeResult:
     episode_return: float
     steps: int
     terminated: bool
+
+
+PLANES: dict[EnvKind, tuple[int, int]] = {
+    "planar_walker": (0, 2),
+    "swimmer": (0, 1),
+    "inverted_pendulum": (0, 2),
+}
+"""The world axes each kind of model moves in (Hopper/Walker2d: x/z; Swimmer: x/y)."""
+
+
+@dataclass(frozen=True)
+class Recording:
+    """An episode with the positions of its bodies, for drawing it in 2-D.
+
+    Every capsule geom of the model (the limbs) is a segment ``(u1, v1, u2, v2)`` in the plane
+    the model moves in (``axes``, world axes: 0 = x, 1 = y, 2 = z) with radius ``radii[i]``.
+    Frame 0 is the state after reset; then one frame every ``stride`` control steps and always
+    the last step, so ``frame_steps`` (control steps since reset) ends at ``episode.steps``.
+
+    Attributes:
+        episode: the episode's return and length (identical to the plain episode's).
+        dt: seconds per control step.
+        stride: control steps between two frames.
+        axes: the two world axes of the segments.
+        geoms: the capsules' names (``geom<i>`` for unnamed ones).
+        radii: the capsules' radii.
+        frame_steps: control step of each frame.
+        frames: ``(n_frames, n_capsules, 4)`` segment end points.
+    """
+
+    episode: EpisodeResult
+    dt: float
+    stride: int
+    axes: tuple[int, int]
+    geoms: tuple[str, ...]
+    radii: tuple[float, ...]
+    frame_steps: tuple[int, ...]
+    frames: np.ndarray
 
 
 class EpisodeRunner:
@@ -205,12 +244,92 @@ class EpisodeRunner:
         beyond MuJoCo's ``ctrlrange`` clamp (the control cost uses the unclipped action, as in
         gymnasium).
         """
+        return self._linear_episode(weights, obs_mean, obs_std, seed, max_steps, None)
+
+    def _linear_episode(
+        self,
+        weights: np.ndarray,
+        obs_mean: np.ndarray,
+        obs_std: np.ndarray,
+        seed: int,
+        max_steps: int,
+        on_step: Callable[[int, bool], None] | None,
+    ) -> EpisodeResult:
+        """The episode loop of :meth:`run_linear`; ``on_step(step, last)`` after reset (step
+        0) and after every control step."""
         obs = self.reset(seed)
+        if on_step is not None:
+            on_step(0, False)
         total = 0.0
         for step in range(1, max_steps + 1):
             action = weights @ ((obs - obs_mean) / obs_std)
             obs, reward, terminated = self.step(action)
             total += reward
+            if on_step is not None:
+                on_step(step, terminated or step == max_steps)
             if terminated:
                 return EpisodeResult(total, step, True)
         return EpisodeResult(total, max_steps, False)
+
+    def observation_names(self) -> tuple[str, ...]:
+        """One label per observation entry: ``<joint>.pos`` / ``<joint>.vel`` (these models
+        have one-dimensional joints only, so qpos/qvel entry i belongs to joint i)."""
+        joints = [self.model.joint(i).name for i in range(self.model.njnt)]
+        skip = {"planar_walker": 1, "swimmer": 2, "inverted_pendulum": 0}[self.spec.kind]
+        return tuple(f"{j}.pos" for j in joints[skip:]) + tuple(f"{j}.vel" for j in joints)
+
+    def actuator_names(self) -> tuple[str, ...]:
+        """One label per action entry: the joint each actuator drives."""
+        trn = self.model.actuator_trnid[:, 0]
+        return tuple(self.model.joint(int(j)).name or f"a{i}" for i, j in enumerate(trn))
+
+    def capsules(self) -> tuple[np.ndarray, tuple[str, ...]]:
+        """Indices and names of the model's capsule geoms (the drawn limbs)."""
+        ids = np.flatnonzero(self.model.geom_type == mujoco.mjtGeom.mjGEOM_CAPSULE)
+        names = tuple(self.model.geom(int(i)).name or f"geom{int(i)}" for i in ids)
+        return ids, names
+
+    def segments(self, ids: np.ndarray) -> np.ndarray:
+        """``(len(ids), 4)`` end points of the capsules ``ids`` in the model's plane now: the
+        geom centre ± half-length along the capsule's axis (the local z axis)."""
+        u, v = PLANES[self.spec.kind]
+        centre = self.data.geom_xpos[ids]
+        axis = self.data.geom_xmat[ids].reshape(-1, 3, 3)[:, :, 2]
+        half = self.model.geom_size[ids, 1][:, None] * axis
+        a, b = centre - half, centre + half
+        return np.stack((a[:, u], a[:, v], b[:, u], b[:, v]), axis=1)
+
+    def record_linear(
+        self,
+        weights: np.ndarray,
+        obs_mean: np.ndarray,
+        obs_std: np.ndarray,
+        seed: int,
+        max_steps: int = 1000,
+        stride: int = 4,
+    ) -> Recording:
+        """:meth:`run_linear` (the same episode, step for step) recording the limbs every
+        ``stride`` control steps (see :class:`Recording`); memory is
+        ``O(max_steps / stride × capsules)``."""
+        if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+            raise ValueError(f"stride: expected a positive integer, got {stride!r}")
+        ids, names = self.capsules()
+        frames: list[np.ndarray] = []
+        steps: list[int] = []
+
+        def on_step(step: int, last: bool) -> None:
+            if step % stride == 0 or last:
+                frames.append(self.segments(ids))
+                steps.append(step)
+
+        episode = self._linear_episode(weights, obs_mean, obs_std, seed, max_steps, on_step)
+        return Recording(
+            episode,
+            self.dt,
+            stride,
+            PLANES[self.spec.kind],
+            names,
+            tuple(float(r) for r in self.model.geom_size[ids, 0]),
+            tuple(steps),
+            np.asarray(frames, dtype=np.float64).reshape(len(frames), len(ids), 4),
+        )

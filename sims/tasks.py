@@ -41,7 +41,15 @@ from typing import NamedTuple, TypedDict, Unpack
 import numpy as np
 
 from .ars import load_ars_policy
-from .episode import HOPPER_V5, SWIMMER_V5, WALKER2D_V5, EnvSpec, EpisodeResult, EpisodeRunner
+from .episode import (
+    HOPPER_V5,
+    SWIMMER_V5,
+    WALKER2D_V5,
+    EnvSpec,
+    EpisodeResult,
+    EpisodeRunner,
+    Recording,
+)
 
 TRUE_VALUE_SEEDS: tuple[int, ...] = (1_000_003, 1_000_033, 1_000_037, 1_000_039, 1_000_081)
 """Reset seeds whose mean return defines ``true_value`` (fixed for every task and run)."""
@@ -245,8 +253,8 @@ class LinearPolicyTask:
         """Return of one episode of theta's policy; ``seed`` fixes the reset noise."""
         return self.rollout(theta, seed).episode_return
 
-    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
-        """Return of one episode of the policy with flattened weights ``x`` (in the box)."""
+    def _weights_of(self, x: np.ndarray) -> np.ndarray:
+        """``W`` of flattened weights ``x``; ValueError unless finite and in the box."""
         flat = np.asarray(x, dtype=np.float64)
         if flat.shape != (self.dim,):
             raise ValueError(f"x: expected shape ({self.dim},) for {self.name}, got {flat.shape}")
@@ -259,8 +267,29 @@ class LinearPolicyTask:
                 f"x: weights must be finite and in [{self.weight_low}, {self.weight_high}] "
                 f"for {self.name}"
             )
-        weights = flat.reshape(self.action_dim, self.obs_dim)
+        return flat.reshape(self.action_dim, self.obs_dim)
+
+    def evaluate_native(self, x: np.ndarray, seed: int) -> float:
+        """Return of one episode of the policy with flattened weights ``x`` (in the box)."""
+        weights = self._weights_of(x)
         return self.rollout_weights(weights, seed).episode_return
+
+    def record_native(self, x: np.ndarray, seed: int, stride: int = 4) -> Recording:
+        """The episode of :meth:`evaluate_native` (same return) with the limbs' positions
+        every ``stride`` control steps (:meth:`EpisodeRunner.record_linear`), for replaying
+        it; ``x`` must lie in the box as for :meth:`evaluate_native`."""
+        weights = self._weights_of(x)
+        return self._runner.record_linear(
+            weights, self.obs_mean, self.obs_std, _check_seed(seed), self.episode_steps, stride
+        )
+
+    def parameter_names(self) -> tuple[str, ...]:
+        """Names of θ's coordinates in ``W.ravel()`` order: ``W[<actuated joint>, <observed
+        entry>]``, e.g. ``W[thigh_joint, rootz.pos]``."""
+        runner = self._runner
+        observed = runner.observation_names()
+        assert len(observed) == self.obs_dim
+        return tuple(f"W[{a}, {o}]" for a in runner.actuator_names() for o in observed)
 
     def true_value(self, theta: np.ndarray) -> float:
         """Noise-free value: mean return over the reset seeds ``TRUE_VALUE_SEEDS``."""

@@ -62,7 +62,7 @@ class RecordingOracle:
     def __init__(self) -> None:
         self.pairs: list[tuple[int, float, float]] = []
 
-    def first_wins(self, duel_id: int, value_a: float, value_b: float) -> bool:
+    def judge(self, duel_id: int, value_a: float, value_b: float) -> bool | None:
         self.pairs.append((duel_id, value_a, value_b))
         return value_a > value_b
 

@@ -60,6 +60,8 @@ def all_values(rng: np.random.Generator) -> list[Any]:
         DuelOutcome.decisive(REQ, 3),
         DuelOutcome.indifferent(REQ),
         DuelOutcome.failed(REQ, "episode of candidate 9 failed"),
+        DuelOutcome.decisive(REQ, 9, answer_seconds=float(rng.exponential(10.0))),
+        DuelOutcome.indifferent(REQ, answer_seconds=0.0),
         RunConfig(
             "run-7",
             "gipbo",
@@ -417,6 +419,15 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "expected diagnostic_msgs/msg/DiagnosticStatus",
     ),
     ("req-self-duel", DuelRequest.decode, dreq(second_id="1"), "second_id", "self-duel"),
+    (
+        "req-negative-seconds",
+        DuelRequest.decode,
+        dreq(decision_seconds="-0.5"),
+        "decision_seconds",
+        ">= 0",
+    ),
+    ("req-nan-seconds", DuelRequest.decode, dreq(decision_seconds="nan"), "decision_seconds", ""),
+    ("req-text-seconds", DuelRequest.decode, dreq(decision_seconds="x"), "decision_seconds", ""),
     ("req-missing", DuelRequest.decode, dreq(first_id=None), "first_id", "missing"),
     ("req-hex-id", DuelRequest.decode, dreq(duel_id="0x1"), "duel_id", "integer id"),
     ("req-space-id", DuelRequest.decode, dreq(duel_id=" 1"), "duel_id", "integer id"),
@@ -464,6 +475,34 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "empty",
     ),
     ("out-unknown-kind", DuelOutcome.decode, dout(kind="tie"), "kind", "not one of decisive"),
+    (
+        "out-answer-seconds-negative",
+        DuelOutcome.decode,
+        dout(answer_seconds="-0.5"),
+        "answer_seconds",
+        "must be >= 0",
+    ),
+    (
+        "out-answer-seconds-nan",
+        DuelOutcome.decode,
+        dout(answer_seconds="nan"),
+        "answer_seconds",
+        "must be finite",
+    ),
+    (
+        "out-answer-seconds-text",
+        DuelOutcome.decode,
+        dout(answer_seconds="soon"),
+        "answer_seconds",
+        "not a number",
+    ),
+    (
+        "out-answer-seconds-when-failed",
+        DuelOutcome.decode,
+        dout(2, kind="failed", winner_id=None, loser_id=None, reason="x", answer_seconds="1.0"),
+        "answer_seconds",
+        "must be absent when kind is failed",
+    ),
     (
         "out-wrong-run",
         lambda m: DuelOutcome.decode(m, expected_run_id="r0"),
@@ -582,6 +621,9 @@ REASONS: dict[str, DecodeReason] = {
     "ep-long-value": _R.TOO_LARGE,
     "ep-wrong-type": _R.WRONG_TYPE,
     "req-self-duel": _R.INCONSISTENT,
+    "req-negative-seconds": _R.OUT_OF_BOUNDS,
+    "req-nan-seconds": _R.NON_FINITE,
+    "req-text-seconds": _R.MALFORMED,
     "req-missing": _R.MALFORMED,
     "req-hex-id": _R.MALFORMED,
     "req-space-id": _R.MALFORMED,
@@ -594,6 +636,10 @@ REASONS: dict[str, DecodeReason] = {
     "out-failed-empty-reason": _R.MALFORMED,
     "out-unknown-kind": _R.MALFORMED,
     "out-wrong-run": _R.WRONG_RUN,
+    "out-answer-seconds-negative": _R.OUT_OF_BOUNDS,
+    "out-answer-seconds-nan": _R.NON_FINITE,
+    "out-answer-seconds-text": _R.MALFORMED,
+    "out-answer-seconds-when-failed": _R.MALFORMED,
     "cfg-not-json": _R.MALFORMED,
     "cfg-nan": _R.NON_FINITE,
     "cfg-dup-key": _R.MALFORMED,
@@ -669,6 +715,11 @@ def test_good_messages_built_by_hand_decode() -> None:
     assert EpisodeResult.decode(ep()) == EpisodeResult.ok("r1", 3, 1.5)
     assert DuelRequest.decode(dreq()) == DuelRequest("r1", 0, 1, 2)
     assert DuelOutcome.decode(dout()) == DuelOutcome("r1", 0, 1, 2, OutcomeKind.DECISIVE, 1, 2)
+    timed = DuelOutcome.decode(dout(answer_seconds="12.5"))
+    assert isinstance(timed, DuelOutcome) and timed.answer_seconds == 12.5
+    assert DuelOutcome.decode(
+        dout(kind="indifferent", winner_id=None, loser_id=None, answer_seconds="3")
+    ) == DuelOutcome("r1", 0, 1, 2, OutcomeKind.INDIFFERENT, answer_seconds=3.0)
     assert RunConfig.decode(config_json()) == GOOD_CONFIG
     assert Status.decode(status_msg(ST)) == Status("r1", "optimizer", "running")
 
@@ -685,6 +736,14 @@ def test_good_messages_built_by_hand_decode() -> None:
         (lambda: DuelRequest("r1", 0, 2, 2), "self-duel"),
         (lambda: DuelOutcome.decisive(REQ, 4), "not the duel's ids"),
         (lambda: DuelOutcome.failed(REQ, ""), "reason"),
+        (lambda: DuelOutcome.decisive(REQ, 9, answer_seconds=-1.0), "answer_seconds"),
+        (lambda: DuelOutcome.decisive(REQ, 9, answer_seconds=math.inf), "answer_seconds"),
+        (
+            lambda: DuelOutcome(
+                REQ.run_id, 0, 3, 9, OutcomeKind.FAILED, reason="x", answer_seconds=1.0
+            ),
+            "answer_seconds",
+        ),
         (lambda: RunConfig("r1", "a", "t", 1, (0.0,), (1.0,), 0, 1, {"x": math.inf}), "options"),
         (lambda: Status("r1", "optimizer", "running", counters={"n": -2}), "count.n"),
         (lambda: Status("r1", "optimizer", "running", level=7), "level"),
@@ -766,3 +825,15 @@ def test_decoders_never_raise_on_garbage() -> None:
                 "RunConfig",
                 "Status",
             }
+
+
+def test_decision_seconds_round_trip_and_do_not_change_the_duel() -> None:
+    timed = DuelRequest("r1", 4, 1, 2, decision_seconds=0.0123)
+    back = DuelRequest.decode(via_cdr(timed.encode()))
+    assert isinstance(back, DuelRequest) and back.decision_seconds == 0.0123
+    assert back == DuelRequest("r1", 4, 1, 2)  # a measurement, not part of the duel
+    plain = DuelRequest.decode(via_cdr(DuelRequest("r1", 4, 1, 2).encode()))
+    assert isinstance(plain, DuelRequest) and plain.decision_seconds is None
+    assert REQ.with_decision_seconds(1.5).decision_seconds == 1.5
+    with pytest.raises(FieldError):
+        DuelRequest("r1", 4, 1, 2, decision_seconds=-1.0)

@@ -31,6 +31,8 @@ def test_cli_bag_info_and_verify(capsys) -> None:
     assert cli_main(["bag-info", str(BAG)]) == 0
     out = capsys.readouterr().out
     assert "complete:  yes" in out and "/localpbo/duel_outcome" in out
+    assert "decision time: not recorded" in out  # recorded before requests carried it
+    assert "outcomes: 39 duels, 39 decisive, 0 can't tell, 0 failed" in out
     assert cli_main(["replay", "--verify", str(BAG)]) == 0
     assert capsys.readouterr().out.startswith("OK: 40 candidates and 39 duels")
     assert cli_main(["bag-info", str(BAG.with_suffix(".missing"))]) == 2

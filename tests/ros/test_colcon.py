@@ -14,7 +14,14 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-EXES = ("optimizer_node", "sim_node", "oracle_node", "recorder_node", "param_bridge_node")
+EXES = (
+    "optimizer_node",
+    "sim_node",
+    "oracle_node",
+    "recorder_node",
+    "param_bridge_node",
+    "judge_node",
+)
 EXAMPLE_EXES = ("pid_controller_node",)
 
 
@@ -63,6 +70,9 @@ def test_layout(install: Path) -> None:
     assert (pkg / "share/ament_index/resource_index/packages/localpbo_ros").is_file()
     assert (pkg / "share/localpbo_ros/package.xml").is_file()
     assert (pkg / "share/localpbo_ros/config/localhost_only.xml").is_file()
+    # the judge's page ships with the package (no CDN)
+    site = next((pkg / "lib").glob("python3*/site-packages/localpbo_ros/web"))
+    assert {p.name for p in site.iterdir()} >= {"judge.html", "judge.js", "judge.css"}
     for exe in EXES:
         path = pkg / "lib/localpbo_ros" / exe
         assert path.is_file() and os.access(path, os.X_OK)
@@ -117,6 +127,7 @@ def test_executable_starts_and_stops_cleanly(
         "recorder_node": f"-p path:={tmp_path / 'rec.mcap'}",
         "param_bridge_node": "-p target_node:=/nobody",
         "pid_controller_node": "-p kp:=2.0",
+        "judge_node": f"-p run_id:=smoke -p state_dir:={tmp_path / 'judge'}",
     }.get(exe, "-p run_id:=smoke")
     path = install / package / "lib" / package / exe
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"}

@@ -39,3 +39,26 @@ def test_refused_setting_exits_2(tmp_path, capsys) -> None:
     code = main(["run", "--budget", "-1", "--out", str(tmp_path), "--no-progress"])
     assert code == 2 and "'budget'" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []  # no empty bag left behind
+
+
+def test_a_person_judging_gets_ties_unless_told_otherwise() -> None:
+    from localpbo_core.settings import DEFAULT_TIE_THRESHOLD
+
+    assert run_settings(parse(["run"]))["tie_threshold"] == 0.0
+    assert run_settings(parse(["run", "--oracle", "human"]))["tie_threshold"] == (
+        DEFAULT_TIE_THRESHOLD
+    )
+    human_without = parse(["run", "--oracle", "human", "--tie-threshold", "0"])
+    assert run_settings(human_without)["tie_threshold"] == 0.0
+    assert run_settings(parse(["run", "--tie-threshold"]))["tie_threshold"] == (
+        DEFAULT_TIE_THRESHOLD
+    )
+    assert run_settings(parse(["run", "--tie-threshold", "0.4"]))["tie_threshold"] == 0.4
+
+
+def test_a_person_judging_gets_speculation_unless_told_otherwise() -> None:
+    assert run_settings(parse(["run"]))["speculate"] is False
+    assert run_settings(parse(["run", "--speculate"]))["speculate"] is True
+    assert run_settings(parse(["run", "--oracle", "human"]))["speculate"] is True
+    no = parse(["run", "--oracle", "human", "--no-speculate"])
+    assert run_settings(no)["speculate"] is False

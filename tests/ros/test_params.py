@@ -51,7 +51,7 @@ def test_descriptors_have_ranges(ros) -> None:
     for p in PARAMS:
         desc = node.describe_parameter(p.name)
         assert desc.read_only and desc.description
-        if isinstance(p.default, int):
+        if isinstance(p.default, int) and not isinstance(p.default, bool):
             assert desc.integer_range and desc.integer_range[0].from_value == p.int_range[0]
         if isinstance(p.default, float):
             assert desc.floating_point_range

@@ -14,65 +14,23 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from localpbo_ros.bagtools import load_run
 from localpbo_ros.suite import run_suite
 
-from localpbo_core.cli import bench, run_file_name
-from localpbo_core.settings import RunSettings
-from localpbo_msgs_py import EpisodeResult, Status
+from localpbo_msgs_py import Status
 from localpbo_msgs_py.bag import read_messages
-from localpbo_msgs_py.records import OutcomeKind
-from localpbo_msgs_py.topics import EPISODE_RESULT, STATUS
+from localpbo_msgs_py.topics import STATUS
 
-TASK = "swimmer"
-TASK_OPTIONS = {"episode_steps": 60, "value_range": 50.0}
-ALGORITHM = "turpbo"
-OPTIONS = {"batch_size": 2}
-SEED = 5
-BUDGET = 12
-NOISE = 0.2
-
-
-def from_bench(tmp_path: Path) -> dict[str, Any]:
-    """Candidates (native θ), values and winners by duel id of ``localpbo bench``."""
-    out = tmp_path / "bench"
-    bench(
-        TASK,
-        [ALGORITHM],
-        [SEED],
-        out,
-        budget=BUDGET,
-        noise=NOISE,
-        options={ALGORITHM: dict(OPTIONS)},
-        problem_options=TASK_OPTIONS,
-        progress=False,
-    )
-    settings = RunSettings(algorithm=ALGORITHM, problem=TASK, seed=SEED)
-    doc = json.loads((out / "runs" / run_file_name(settings)).read_text())
-    return {
-        "native": {c["id"]: tuple(c["native"]) for c in doc["candidates"]},
-        "values": {c["id"]: c["value"] for c in doc["candidates"]},
-        "winners": {a["duel_id"]: (a["first"], a["second"], a["winner"]) for a in doc["answers"]},
-    }
-
-
-def from_bag(bag: Path) -> dict[str, Any]:
-    """The same three things as recorded in a bag."""
-    run = load_run(bag)
-    values = {}
-    for rec in read_messages(bag, topics=[EPISODE_RESULT.name]):
-        res = EpisodeResult.decode(rec.message)
-        assert isinstance(res, EpisodeResult)
-        values.setdefault(res.candidate_id, res.episode_return)
-    winners = {}
-    for out in run.outcomes:
-        assert out.kind is OutcomeKind.DECISIVE
-        winners.setdefault(out.duel_id, (out.first_id, out.second_id, out.winner_id))
-    return {
-        "native": {cid: c.theta for cid, c in run.candidates.items()},
-        "values": values,
-        "winners": winners,
-    }
+from .same_run import (
+    ALGORITHM,
+    BUDGET,
+    NOISE,
+    OPTIONS,
+    SEED,
+    TASK,
+    TASK_OPTIONS,
+    from_bag,
+    from_bench,
+)
 
 
 def node_parameters() -> dict[str, Any]:
@@ -149,7 +107,8 @@ def from_four_processes(tmp_path: Path) -> dict[str, Any]:
 def test_bench_run_and_four_processes_give_the_same_run(tmp_path: Path) -> None:
     reference = from_bench(tmp_path)
     assert len(reference["native"]) == BUDGET
-    assert len(reference["winners"]) >= BUDGET - 1
+    assert len(reference["answers"]) >= BUDGET - 1
+    assert {kind for _, _, kind, _ in reference["answers"].values()} == {"decisive"}
 
     one_process = tmp_path / "one.mcap"
     summary = run_suite(node_parameters(), one_process, timeout_s=300)
@@ -160,4 +119,4 @@ def test_bench_run_and_four_processes_give_the_same_run(tmp_path: Path) -> None:
         # floats compared exactly: bit-identical, not approximately equal
         assert got["native"] == reference["native"], name
         assert got["values"] == reference["values"], name
-        assert got["winners"] == reference["winners"], name
+        assert got["answers"] == reference["answers"], name

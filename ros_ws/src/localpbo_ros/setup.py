@@ -8,7 +8,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=[PACKAGE, f"{PACKAGE}.benchmarks"],
-    package_data={PACKAGE: ["localhost_only.xml"]},
+    package_data={PACKAGE: ["localhost_only.xml", "web/*.html", "web/*.js", "web/*.css"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -16,7 +16,7 @@ setup(
     ],
     install_requires=["setuptools"],
     zip_safe=True,
-    description="ROS 2 nodes of localpbo: optimizer, MuJoCo simulator and preference oracle.",
+    description="ROS 2 nodes of localpbo: optimizer, MuJoCo simulator, oracle and judge page.",
     license="MIT",
     entry_points={
         "console_scripts": [
@@ -25,6 +25,7 @@ setup(
             f"oracle_node = {PACKAGE}.oracle_node:main",
             f"recorder_node = {PACKAGE}.recorder_node:main",
             f"param_bridge_node = {PACKAGE}.param_bridge_node:main",
+            f"judge_node = {PACKAGE}.judge_node:main",
         ],
     },
 )

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-from localpbo_msgs_py import CandidateMsg, DuelOutcome, DuelRequest, RunConfig
+import numpy as np
+
+from localpbo_msgs_py import CandidateMsg, DuelOutcome, DuelRequest, OutcomeKind, RunConfig
 from localpbo_msgs_py.bag import BagWriter, read_messages, summarize
 from localpbo_msgs_py.topics import ALL_TOPICS, CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, RUN_CONFIG
 
@@ -81,3 +84,79 @@ def copy_into(path: str | os.PathLike[str], writer: BagWriter) -> int:
         )
         n += 1
     return n
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Count, median, 95th percentile and maximum of per-duel durations (seconds), shown in
+    ``unit`` (``ms`` or ``s``)."""
+
+    name: str
+    seconds: tuple[float, ...]
+    unit: str = "ms"
+
+    def format(self) -> str:
+        """One line, e.g. ``decision time: 40 duels, median 12.3 ms, p95 150 ms, max 180 ms``."""
+        if not self.seconds:
+            return f"{self.name}: not recorded"
+        u = self.unit
+        x = np.asarray(self.seconds) * {"ms": 1e3, "s": 1.0}[u]
+        return (
+            f"{self.name}: {len(x)} duels, median {np.median(x):.3g} {u}, "
+            f"p95 {np.percentile(x, 95):.3g} {u}, max {x.max():.3g} {u}"
+        )
+
+
+@dataclass(frozen=True)
+class OutcomeCounts:
+    """How the duels of a run ended, each duel counted once (its first recorded outcome;
+    an outcome re-published for a repeated request is the same answer)."""
+
+    decisive: int
+    indifferent: int
+    failed: int
+
+    @property
+    def duels(self) -> int:
+        """Duels with an outcome."""
+        return self.decisive + self.indifferent + self.failed
+
+    def format(self) -> str:
+        """One line, e.g. ``outcomes: 40 duels, 31 decisive, 9 can't tell, 0 failed``."""
+        return (
+            f"outcomes: {self.duels} duels, {self.decisive} decisive, "
+            f"{self.indifferent} can't tell, {self.failed} failed"
+        )
+
+
+def outcome_counts(run: RecordedRun) -> OutcomeCounts:
+    """Count the outcomes of a recorded run (:func:`load_run`) by kind, one per duel."""
+    first: dict[int, OutcomeKind] = {}
+    for out in run.outcomes:
+        first.setdefault(out.duel_id, out.kind)
+    kinds = list(first.values())
+    return OutcomeCounts(
+        decisive=kinds.count(OutcomeKind.DECISIVE),
+        indifferent=kinds.count(OutcomeKind.INDIFFERENT),
+        failed=kinds.count(OutcomeKind.FAILED),
+    )
+
+
+def duel_timings(run: RecordedRun) -> Sequence[Timing]:
+    """Per-duel times of a recorded run (:func:`load_run`): the optimizer's decision time (from the
+    ``decision_seconds`` of each duel's first request) and, when a person judged
+    (``judge_node``), the answer time (``answer_seconds`` of each duel's first timed outcome;
+    an answer re-published for a repeated request counts once)."""
+    decision = tuple(
+        r.decision_seconds
+        for _, r in sorted(run.requests.items())
+        if r.decision_seconds is not None
+    )
+    answers: dict[int, float] = {}
+    for out in run.outcomes:
+        if out.answer_seconds is not None:
+            answers.setdefault(out.duel_id, out.answer_seconds)
+    timings = [Timing("decision time", decision)]
+    if answers:
+        timings.append(Timing("answer time", tuple(answers[k] for k in sorted(answers)), "s"))
+    return tuple(timings)

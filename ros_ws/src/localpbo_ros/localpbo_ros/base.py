@@ -127,6 +127,10 @@ class SuiteNode(Node):
         """Info items of the status message (``info.<name>``); none by default."""
         return {}
 
+    def counter_snapshot(self) -> dict[str, int]:
+        """The counters of the status message (a copy)."""
+        return dict(self.counters)
+
     def publish_status(self, level: int = 0, message: str = "") -> None:
         """Publish state, counters and :meth:`status_info` on ``/localpbo/status``."""
         status = Status(
@@ -135,7 +139,7 @@ class SuiteNode(Node):
             self.state,
             level,
             message[:4000],
-            dict(self.counters),
+            self.counter_snapshot(),
             self.status_info(),
             self.get_clock().now().nanoseconds,
         )

@@ -22,6 +22,7 @@ from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
     DEFAULT_PROBLEM,
+    DEFAULT_TIE_THRESHOLD,
 )
 
 EXIT_OK, EXIT_RUN_FAILED, EXIT_USAGE = 0, 1, 2
@@ -62,6 +63,25 @@ def add_subcommands(subparsers: Any) -> None:
         default=DEFAULT_NOISE_FRACTION,
         help="oracle noise std as a fraction of the task's value range",
     )
+    run.add_argument(
+        "--tie-threshold",
+        type=float,
+        nargs="?",
+        default=None,
+        const=DEFAULT_TIE_THRESHOLD,
+        metavar="EPS",
+        help="indifference threshold eps of the ordinal likelihood: 'can't tell' answers are "
+        f"used iff > 0 (default 0, the paper's model, and {DEFAULT_TIE_THRESHOLD} with "
+        f"--oracle human; the flag alone: {DEFAULT_TIE_THRESHOLD}, the value for a person "
+        "judging)",
+    )
+    run.add_argument(
+        "--indifference",
+        type=float,
+        default=0.0,
+        help="the simulated oracle answers 'can't tell' when its noisy difference is below "
+        "this fraction of the value range (needs --tie-threshold > 0; default 0)",
+    )
     run.add_argument("--algorithm-options", type=_json_object, default="{}", metavar="JSON")
     run.add_argument(
         "--task-options",
@@ -94,6 +114,29 @@ def add_subcommands(subparsers: Any) -> None:
         metavar="JSON",
         help="start the worked example's pid_controller_node in this process (optionally with "
         "its parameters as JSON) and bridge to it",
+    )
+    run.add_argument(
+        "--oracle",
+        choices=("simulated", "human"),
+        default="simulated",
+        help="who answers the duels: the simulated oracle (episode returns plus noise) or "
+        "you, in a browser (prints the page's URL and waits for your answers)",
+    )
+    run.add_argument(
+        "--judge",
+        type=_json_object,
+        default="{}",
+        metavar="JSON",
+        help="judge_node parameters with --oracle human, e.g. '{\"port\": 8765}' (default: "
+        "a free port on 127.0.0.1; answers journaled in OUT/judge/RUN_ID/)",
+    )
+    run.add_argument(
+        "--speculate",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="prepare the next ask for every possible answer while a duel is judged (the "
+        "next duel appears at once; the same run either way); default: on with --oracle "
+        "human, off otherwise",
     )
     run.add_argument("--failure-policy", choices=("retry", "stop"), default="retry")
     run.add_argument("--out", default="runs", help="directory for the bag")
@@ -132,6 +175,22 @@ def add_subcommands(subparsers: Any) -> None:
     info.set_defaults(func=cmd_bag_info)
 
 
+def tie_threshold_of(args: argparse.Namespace) -> float:
+    """``--tie-threshold``, else 0 (the paper's model), or ``DEFAULT_TIE_THRESHOLD`` when a
+    person judges (``--oracle human``: people need a "can't tell")."""
+    if args.tie_threshold is not None:
+        return float(args.tie_threshold)
+    return DEFAULT_TIE_THRESHOLD if getattr(args, "oracle", "") == "human" else 0.0
+
+
+def speculate_of(args: argparse.Namespace) -> bool:
+    """``--speculate``/``--no-speculate``, else on when a person judges (a person waits for
+    each decision; a simulated oracle does not, and speculation would only cost CPU)."""
+    if args.speculate is not None:
+        return bool(args.speculate)
+    return getattr(args, "oracle", "") == "human"
+
+
 def run_settings(args: argparse.Namespace) -> dict[str, Any]:
     """Optimizer-node parameters from ``run`` arguments."""
     run_id = args.run_id or time.strftime("run-%Y%m%dT%H%M%SZ", time.gmtime())
@@ -143,10 +202,13 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
         "seed": args.seed,
         "initial_design": args.initial_design,
         "noise_fraction": float(args.noise),
+        "tie_threshold": tie_threshold_of(args),
+        "indifference": float(args.indifference),
         "algorithm_options": args.algorithm_options,
         "task_options": args.task_options,
         "failure_policy": args.failure_policy,
         "space": args.space,
+        "speculate": speculate_of(args),
     }
 
 
@@ -184,6 +246,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.space and bridge is None and args.resume is None:
         print("localpbo run: --space needs --bridge or --example-controller", file=sys.stderr)
         return EXIT_USAGE
+    judge = None
+    if args.oracle == "human":
+        judge = {"state_dir": str(bag.parent / "judge"), **json.loads(args.judge)}
+
+    def show_url(url: str) -> None:
+        text = f"judge the duels at {url}"
+        if bar is not None:
+            bar.write(text)
+        else:
+            print(text, flush=True)
+
     try:
         summary = run_suite(
             settings,
@@ -192,6 +265,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             on_progress=progress,
             bridge=bridge,
             controllers=controllers,
+            judge=judge,
+            on_url=show_url,
         )
     except ParameterError as exc:
         print(f"localpbo run: {exc}", file=sys.stderr)
@@ -270,12 +345,20 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def cmd_bag_info(args: argparse.Namespace) -> int:
     """``localpbo bag-info``."""
     from localpbo_msgs_py.bag import summarize
+    from localpbo_ros.bagtools import duel_timings, load_run, outcome_counts
 
     try:
         print(summarize(args.bag).format())
     except (OSError, ValueError) as exc:
         print(f"localpbo bag-info: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    try:
+        run = load_run(args.bag)
+    except ValueError:  # not a run's bag (no run config): topics only
+        return EXIT_OK
+    print(outcome_counts(run).format())
+    for timing in duel_timings(run):
+        print(timing.format())
     return EXIT_OK
 
 

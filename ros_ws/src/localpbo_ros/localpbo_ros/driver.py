@@ -11,12 +11,16 @@ the offline verification, the resume rebuild and ``localpbo bench`` cannot disag
   evaluates in-process.
 * :meth:`Driver.offer` turns a decoded :class:`DuelOutcome` into an :class:`Answer` and
   returns the session's :class:`Verdict`; answers of another run get ``Reason.WRONG_RUN``.
+* :meth:`Driver.speculate` prepares the next ask for every possible answer of the last
+  pending duel in a background thread (:mod:`localpbo_core.speculation`); the answer that
+  arrives adopts its branch, so :meth:`Driver.ask` returns at once — with exactly the work it
+  would have computed.
 
 Run-config ``options`` layout::
 
     {"optimizer": {<algorithm options>, "initial_design": int},
      "task": {<problem options, e.g. episode_steps, value_range>},
-     "oracle": {"noise_fraction": float},
+     "oracle": {"noise_fraction": float, "tie_threshold": float, "indifference": float},
      "failure": {"policy": "retry" | "stop", "max_retries": int},
      "space": {"name", "parameters": [{"name", "lower", "upper", "log", "initial", "unit",
                "description"}], "value_range"}}            # only in space runs
@@ -26,6 +30,12 @@ own parameters (:class:`~localpbo_core.space.ParameterSpace`): its task is ``spa
 the ``space`` section holds the whole space (names, units, scales), so a bag explains itself
 and :func:`problem_of` rebuilds the run from the config alone; configs without the section
 (older bags, registered tasks) build the registered task as before.
+
+"Can't tell" answers: ``oracle.tie_threshold`` is the indifference threshold ``eps`` of the
+ordinal likelihood (:mod:`localpbo_core.surrogate.ordinal`; indifferent outcomes are accepted
+iff it is > 0) and ``oracle.indifference`` the simulated oracle's "can't tell" band (a fraction
+of the value range). Both are written only when > 0, and an absent key reads as 0, so bags
+recorded before ties existed load and verify unchanged.
 """
 
 from __future__ import annotations
@@ -38,7 +48,15 @@ import numpy as np
 
 from localpbo_core.optimizers.base import Candidate
 from localpbo_core.problems import Problem
-from localpbo_core.session import Answer, DuelRequest, Reason, Session, Verdict, build_problem
+from localpbo_core.session import (
+    Answer,
+    DuelRequest,
+    Reason,
+    Session,
+    Step,
+    Verdict,
+    build_problem,
+)
 from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
@@ -46,6 +64,7 @@ from localpbo_core.settings import (
     SettingError,
 )
 from localpbo_core.space import ParameterSpace, parse_space
+from localpbo_core.speculation import Speculation
 from localpbo_msgs_py import CandidateMsg, DuelOutcome, Incumbent, RunConfig
 from localpbo_msgs_py import DuelRequest as DuelRequestMsg
 from localpbo_msgs_py.records import OutcomeKind
@@ -68,13 +87,16 @@ def settings_of(config: RunConfig) -> RunSettings:
     """The run settings a run config describes."""
     optimizer = section(config, "optimizer")
     initial = optimizer.pop("initial_design", DEFAULT_INITIAL_DESIGN)
+    oracle = section(config, "oracle")
     return RunSettings(
         algorithm=config.algorithm,
         problem=config.task,
         seed=config.seed,
         budget=config.budget,
         initial_design=initial,
-        noise_fraction=section(config, "oracle").get("noise_fraction", DEFAULT_NOISE_FRACTION),
+        noise_fraction=oracle.get("noise_fraction", DEFAULT_NOISE_FRACTION),
+        tie_threshold=oracle.get("tie_threshold", 0.0),
+        indifference=oracle.get("indifference", 0.0),
         optimizer_options=optimizer,
         problem_options=section(config, "task"),
     )
@@ -150,10 +172,15 @@ def make_run_config(
         session = session or Session(settings, space)
     session = session or Session(settings)
     lower, upper = task_box(session.problem)
+    oracle: dict[str, float] = {"noise_fraction": settings.noise_fraction}
+    if settings.tie_threshold > 0:
+        oracle["tie_threshold"] = settings.tie_threshold
+    if settings.indifference > 0:
+        oracle["indifference"] = settings.indifference
     options = {
         "optimizer": {**settings.optimizer_options, "initial_design": settings.initial_design},
         "task": dict(settings.problem_options),
-        "oracle": {"noise_fraction": settings.noise_fraction},
+        "oracle": oracle,
         "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
     }
     if space is not None:
@@ -209,6 +236,7 @@ class Driver:
 
     Attributes:
         accepted: every accepted outcome message, in acceptance order.
+        speculated: accepted answers whose next ask had been prepared (:meth:`speculate`).
     """
 
     def __init__(self, config: RunConfig, problem: Problem | None = None) -> None:
@@ -217,6 +245,10 @@ class Driver:
             settings_of(config), problem if problem is not None else problem_of(config)
         )
         self.accepted: list[DuelOutcome] = []
+        self.speculated = 0
+        self._speculation: Speculation | None = None
+        self._shown: Speculation | None = None  # the last one started: its recommendation
+        self._prepared: Step | None = None
         if self.session.problem.dim != config.dim:
             raise SettingError(
                 "dim", f"run config says {config.dim}, task has {self.session.problem.dim}"
@@ -235,12 +267,13 @@ class Driver:
 
     @property
     def step_open(self) -> bool:
-        """Duels of the current ask are still unanswered."""
-        return self.session.step_open
+        """Duels of the current ask are still unanswered (an adopted branch's next step is
+        not open until :meth:`ask` hands it out)."""
+        return self._prepared is None and self.session.step_open
 
     @property
     def n_duels(self) -> int:
-        """Accepted (decisive) answers so far."""
+        """Accepted answers so far (decisive and "can't tell")."""
         return self.session.n_duels
 
     def candidate_msg(self, candidate: Candidate) -> CandidateMsg:
@@ -250,6 +283,8 @@ class Driver:
 
     def pending_requests(self) -> tuple[DuelRequestMsg, ...]:
         """Requests of the duels still pending, by duel id."""
+        if self._prepared is not None:
+            return ()
         return tuple(
             DuelRequestMsg(self.run_id, d.duel_id, d.first, d.second)
             for d in self.session.pending()
@@ -257,6 +292,8 @@ class Driver:
 
     def pending_candidates(self) -> tuple[CandidateMsg, ...]:
         """Every candidate a pending duel refers to (new and earlier ones), by id."""
+        if self._prepared is not None:
+            return ()
         return tuple(self.candidate_msg(c) for c in self.session.pending_candidates())
 
     def incumbent(self) -> Incumbent | None:
@@ -275,15 +312,53 @@ class Driver:
 
     # ------------------------------------------------------------------ ask / offer
     def ask(self) -> Work:
-        """Ask for the next work (call only when no step is open and the run is not done)."""
-        step = self.session.ask()
+        """Ask for the next work (call only when no step is open and the run is not done);
+        a step prepared by :meth:`speculate` for the accepted answer is returned as is."""
+        step, self._prepared = self._prepared, None
+        if step is None:
+            step = self.session.ask()
         return Work(tuple(self.candidate_msg(c) for c in step.candidates), self.pending_requests())
+
+    def speculate(self) -> Speculation | None:
+        """Start preparing the next ask for every possible answer of the last pending duel
+        (background thread) and return the speculation; None, doing nothing, unless exactly
+        one duel is pending."""
+        self.cancel_speculation()
+        if self._prepared is not None or len(self.session.pending()) != 1:
+            return None
+        self._speculation = Speculation(self.session, recommend=True).start()
+        self._shown = self._speculation
+        return self._speculation
+
+    def prepared_recommendation(self) -> CandidateMsg | None:
+        """The recommendation the last speculation computed for the current state (task
+        units), or None while it is not known; costs nothing here."""
+        spec = self._shown
+        rec = None if spec is None else spec.recommendation
+        return None if rec is None else self.candidate_msg(rec)
+
+    def cancel_speculation(self) -> None:
+        """Drop prepared branches (the one being computed finishes in the background)."""
+        if self._speculation is not None:
+            self._speculation.cancel()
+            self._speculation = None
 
     def offer(self, outcome: DuelOutcome) -> Verdict:
         """Offer ``outcome`` to the session (never raises)."""
         if outcome.run_id != self.run_id:
             return Verdict(Reason.WRONG_RUN, f"run {outcome.run_id!r}")
-        verdict = self.session.offer(answer_of(outcome))
+        answer = answer_of(outcome)
+        spec = self._speculation
+        if spec is not None and answer in spec.answers:
+            self._speculation = None
+            branch = spec.take(answer)
+            if branch is not None:  # the session as it would be after offer + ask
+                self.session = branch.session
+                self._prepared = branch.step
+                self.speculated += 1
+                self.accepted.append(outcome)
+                return branch.verdict
+        verdict = self.session.offer(answer)
         if verdict.accepted:
             self.accepted.append(outcome)
         return verdict

@@ -13,6 +13,15 @@ anew) or ends the run (``stop``, and ``retry`` once the retries are spent): the 
 state ``failed``, reports the reason on the status topic and stops publishing work. The
 optimizer never sees a failed duel.
 
+Speculation (parameter ``speculate``, for a person answering): while the last duel of an ask
+is pending, the next ask is prepared for each of its possible answers in a background thread
+(:meth:`localpbo_ros.driver.Driver.speculate`), so the next duel goes out as soon as the
+answer arrives; what is asked is the same either way. Every duel request carries
+``decision_seconds``: the time from the answer that completed the previous ask to the request
+(``localpbo bag-info`` summarises them). Counter: ``speculated`` (answers whose next ask was
+ready). The speculation also computes the current recommendation (highest posterior mean
+utility), announced as ``info.recommended`` in the node's status for the judge's page.
+
 Late joiners: while a step is open, the pending duels' candidates and requests are published
 again every ``republish_period_s`` (idempotent for the other nodes).
 
@@ -52,6 +61,7 @@ from localpbo_msgs_py import (
     CandidateMsg,
     DecodeError,
     DuelOutcome,
+    DuelRequest,
     EpisodeResult,
     EpisodeStatus,
     RunConfig,
@@ -128,6 +138,20 @@ PARAMS = [
         float_range=(0.0, 10.0),
     ),
     Param(
+        "tie_threshold",
+        0.0,
+        "Indifference threshold eps of the ordinal likelihood (latent units); 'can't tell' "
+        "outcomes are accepted iff > 0 (0 = the paper's model; 0.25 for a person judging).",
+        float_range=(0.0, 10.0),
+    ),
+    Param(
+        "indifference",
+        0.0,
+        "The simulated oracle answers 'can't tell' when its noisy difference is below this "
+        "fraction of the task's value range (needs tie_threshold > 0; 0 = never).",
+        float_range=(0.0, 10.0),
+    ),
+    Param(
         "failure_policy",
         DEFAULT_FAILURE_POLICY,
         "What a failed or timed-out duel does.",
@@ -177,6 +201,12 @@ PARAMS = [
         int_range=(1, 1000),
     ),
     Param(
+        "speculate",
+        False,
+        "Prepare the next ask for every possible answer of the last pending duel while it is "
+        "judged (for a person answering; costs one decision per possible answer).",
+    ),
+    Param(
         "min_workers",
         0,
         "Start once this many pool workers are heard (0 = do not wait).",
@@ -194,6 +224,8 @@ PARAMETER_OF_SETTING = {
     "budget": "budget",
     "initial_design": "initial_design",
     "noise_fraction": "noise_fraction",
+    "tie_threshold": "tie_threshold",
+    "indifference": "indifference",
     "optimizer_options": "algorithm_options",
     "problem_options": "task_options",
     "failure_policy": "failure_policy",
@@ -215,6 +247,8 @@ def config_from_settings(s: dict[str, Any]) -> RunConfig:
             budget=s["budget"] or None,
             initial_design=s["initial_design"],
             noise_fraction=s["noise_fraction"],
+            tie_threshold=s["tie_threshold"],
+            indifference=s["indifference"],
             optimizer_options=s["algorithm_options"],
             problem_options=s["task_options"],
         )
@@ -251,6 +285,8 @@ def settings_from_config(config: RunConfig) -> dict[str, Any]:
         "initial_design": settings.initial_design,
         "seed": settings.seed,
         "noise_fraction": float(settings.noise_fraction),
+        "tie_threshold": float(settings.tie_threshold),
+        "indifference": float(settings.indifference),
         "failure_policy": failure.get("policy", DEFAULT_FAILURE_POLICY),
         "max_retries": int(failure.get("max_retries", DEFAULT_MAX_RETRIES)),
         **extra,
@@ -292,6 +328,8 @@ class OptimizerNode(SuiteNode):
         self._deadline = float("inf")
         self._last_publish = 0.0
         self._started = False
+        self._decision_s: dict[int, float] = {}  # duel id -> decision time of its ask
+        self._answered_at = 0.0  # when the answer that completed the last ask arrived
         self._cpu0 = 0.0
         self.started_at = 0.0
         self.finished_at = 0.0
@@ -307,6 +345,12 @@ class OptimizerNode(SuiteNode):
         self._pub_config.publish(self.config.encode())
         self.state = "waiting"
         self._timer = self.create_timer(TICK_S, self._tick)
+
+    def status_info(self) -> dict[str, str]:
+        """``info.recommended``: the candidate with the highest posterior mean utility, once a
+        speculation has computed it (runs with ``speculate``: a person is judging)."""
+        rec = self.driver.prepared_recommendation()
+        return {} if rec is None else {"recommended": str(rec.candidate_id)}
 
     # ------------------------------------------------------------------ timing
     def _now(self) -> float:
@@ -344,6 +388,7 @@ class OptimizerNode(SuiteNode):
     def _start(self) -> None:
         self._started = True
         self.started_at = self._now()
+        self._answered_at = self.started_at
         self._cpu0 = time.process_time()
         self.state = "running"
         if self.driver.done:
@@ -352,6 +397,7 @@ class OptimizerNode(SuiteNode):
             self._publish_incumbent()
             self._publish_pending()
             self._deadline = self._now() + self.settings["duel_timeout_s"]
+            self._speculate()
         else:
             self._next_step()
 
@@ -359,18 +405,37 @@ class OptimizerNode(SuiteNode):
     def _next_step(self) -> None:
         work = self.driver.ask()
         self._dispatch(fresh={c.candidate_id for c in work.candidates})
+        decided = self._now() - self._answered_at
         for req in work.requests:
-            self._pub_request.publish(req.encode())
+            self._decision_s[req.duel_id] = decided
+            self._publish_request(req)
         self._last_publish = self._now()
         self._deadline = self._last_publish + self.settings["duel_timeout_s"]
+        self._speculate()
+
+    def _speculate(self) -> None:
+        if self.settings["speculate"] and self.driver.speculate() is not None:
+            self.counters["speculations"] += 1
+
+    def _publish_request(self, req: DuelRequest) -> None:
+        timed = req.with_decision_seconds(self._decision_s.get(req.duel_id))
+        self._pub_request.publish(timed.encode())
 
     def _dispatch(
-        self, *, fresh: set[int] | frozenset[int] = frozenset(), again: bool = False
+        self,
+        *,
+        fresh: set[int] | frozenset[int] = frozenset(),
+        again: bool = False,
+        retry: bool = False,
     ) -> None:
         """Publish candidates of the open step: new assignments to workers with room, the
         ``fresh`` ones unassigned while no worker is known, and with ``again`` every pending
-        candidate that is assigned or evaluated (to its worker) or, with no worker known,
-        unassigned. Candidates of workers gone silent are taken back first."""
+        candidate that is out to a live worker or was evaluated by one (its cached result is
+        re-published, nothing is evaluated twice) or, with no worker known, unassigned. Only
+        with ``retry`` (the failure policy's retry of a duel) are candidates whose episode
+        failed assigned again, and candidates evaluated by a worker now gone sent to a live
+        one (the oracle lacks their result: evaluating again is the only way to get it).
+        Candidates of workers gone silent are taken back first."""
         if not self.driver.step_open:
             return
         now = self._now()
@@ -382,7 +447,7 @@ class OptimizerNode(SuiteNode):
             )
         pending = self.driver.pending_candidates()
         ids = [c.candidate_id for c in pending]
-        new = {a.candidate_id for a in self.pool.assign(ids, now, retry=again)}
+        new = {a.candidate_id for a in self.pool.assign(ids, now, retry=retry)}
         live = self.pool.live(now)
         self.counters["assigned"] = self.pool.assigned
         self.counters["reassigned"] = self.pool.reassigned
@@ -395,17 +460,18 @@ class OptimizerNode(SuiteNode):
             elif not live:
                 if again or cid in fresh:
                     self._publish_candidate(cand, "")
-            elif again and worker:
-                # evaluated by a worker now gone: any live worker re-publishes it identically
-                self._publish_candidate(cand, worker if worker in live else live[0])
+            elif again and worker in live:
+                self._publish_candidate(cand, worker)
+            elif retry and worker:  # evaluated by a worker now gone
+                self._publish_candidate(cand, live[0])
 
     def _publish_candidate(self, cand: CandidateMsg, worker: str) -> None:
         self._pub_candidate.publish(cand.assigned_to(worker).encode())
 
-    def _publish_pending(self) -> None:
-        self._dispatch(again=True)
+    def _publish_pending(self, retry: bool = False) -> None:
+        self._dispatch(again=True, retry=retry)
         for req in self.driver.pending_requests():
-            self._pub_request.publish(req.encode())
+            self._publish_request(req)
         self._last_publish = self._now()
 
     def _publish_incumbent(self) -> None:
@@ -446,6 +512,7 @@ class OptimizerNode(SuiteNode):
             detail = f"duel {decoded.duel_id} arrived while {self.state}"
             self.drop(Reason.NOT_RUNNING.value, detail)
             return
+        arrived = self._now()
         verdict = self.driver.offer(decoded)
         if verdict.reason is Reason.FAILED:
             self.counters["failed_duels"] += 1
@@ -458,6 +525,7 @@ class OptimizerNode(SuiteNode):
             self.drop(verdict.reason.value, verdict.detail)
             return
         self.counters["duels_done"] = self.driver.n_duels
+        self.counters["speculated"] = self.driver.speculated
         every = self.settings["progress_every"]
         if every and self.driver.n_duels % every == 0:
             self.get_logger().info(
@@ -467,11 +535,14 @@ class OptimizerNode(SuiteNode):
         self._last_publish = self._now()  # progress: no re-publish right away
         self._deadline = self._last_publish + self.settings["duel_timeout_s"]
         if not self.driver.step_open:
+            self._answered_at = arrived
             self._publish_incumbent()
             if self.driver.done:
                 self._finish()
             else:
                 self._next_step()
+        else:
+            self._speculate()  # the ask's last duel may be the only one left
 
     def _failure(self, duel_id: int, reason: str) -> None:
         policy = self.settings["failure_policy"]
@@ -484,10 +555,11 @@ class OptimizerNode(SuiteNode):
         self._attempts[duel_id] = tries + 1
         self.counters["retries"] += 1
         self.warn("duel_retry", f"duel {duel_id} failed ({reason}); retry {tries + 1}")
-        self._publish_pending()
+        self._publish_pending(retry=True)
         self._deadline = self._now() + self.settings["duel_timeout_s"]
 
     def _finish(self) -> None:
+        self.driver.cancel_speculation()
         self.finished = True
         self.finished_at = self._now()
         self.cpu_seconds = time.process_time() - self._cpu0
@@ -516,6 +588,7 @@ class OptimizerNode(SuiteNode):
         )
 
     def _stop(self, reason: str) -> None:
+        self.driver.cancel_speculation()
         self.finished = True
         self.finished_at = self._now()
         self.error = reason

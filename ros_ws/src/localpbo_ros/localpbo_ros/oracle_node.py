@@ -8,9 +8,12 @@ The comparison is the run's simulated oracle, ``localpbo_core.problems.DuelOracl
 std = ``noise_fraction`` × the task's value range (run config ``options.oracle``), drawn per
 duel from ``localpbo_core.seeds.duel_seed(run seed, duel id)``. The answer to a duel is a
 function of the run seed, the duel id and the two returns only, so duplicates, late joiners,
-resumed runs and ``localpbo bench`` get the same answer. A decisive answer is stored and
-re-published for a repeated request. A failed episode result fails the duels waiting on it
-(and is then forgotten, so a retry waits for the fresh result).
+resumed runs and ``localpbo bench`` get the same answer. With the run config's
+``oracle.indifference`` > 0 the oracle answers "can't tell" (an ``indifferent`` outcome) when
+its noisy difference is below that fraction of the value range
+(:meth:`~localpbo_core.problems.DuelOracle.judge`: the same per-duel draw as the core's
+loop). An answer is stored and re-published for a repeated request. A failed episode result
+fails the duels waiting on it (and is then forgotten, so a retry waits for the fresh result).
 """
 
 from __future__ import annotations
@@ -31,8 +34,12 @@ from localpbo_ros.follower import FollowerNode
 def judge(
     oracle: DuelOracle, request: DuelRequest, value_first: float, value_second: float
 ) -> DuelOutcome:
-    """The decisive outcome of ``request`` (paper eq. (3): first wins iff y_first > y_second)."""
-    first_wins = oracle.first_wins(request.duel_id, value_first, value_second)
+    """The outcome of ``request``: decisive (paper eq. (3): first wins iff y_first > y_second)
+    or, with the oracle's ``indifference`` > 0, "can't tell" when the noisy values are closer
+    than that band."""
+    first_wins = oracle.judge(request.duel_id, value_first, value_second)
+    if first_wins is None:
+        return DuelOutcome.indifferent(request)
     return DuelOutcome.decisive(request, request.first_id if first_wins else request.second_id)
 
 
@@ -74,7 +81,12 @@ class OracleNode(FollowerNode):
     def adopt(self, config: RunConfig) -> None:
         """Build the run's oracle (the task's value range scales the noise)."""
         settings = settings_of(config)
-        self._oracle = DuelOracle(problem_of(config), settings.noise_fraction, settings.seed)
+        self._oracle = DuelOracle(
+            problem_of(config),
+            settings.noise_fraction,
+            settings.seed,
+            indifference=settings.indifference,
+        )
 
     def _reason(self, err: DecodeError) -> str:
         return err.reason.value

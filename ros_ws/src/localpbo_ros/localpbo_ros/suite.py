@@ -10,6 +10,11 @@ candidates on a controller node, either started in this process (``controllers=`
 worked example; nothing leaves the process) or running elsewhere on this host (then the
 process uses the executables' host-only DDS scope so it can reach it).
 
+A person as the oracle (``judge=``): ``judge_node`` replaces ``oracle_node``; its page's URL
+goes to ``on_url`` once the run config is known, the optimizer's ``duel_timeout_s`` defaults
+to a day (people take breaks; a pending duel is never failed for being slow) and the run's
+``tie_threshold`` to ``DEFAULT_TIE_THRESHOLD`` (people need a "can't tell").
+
 Resume (``resume=BAG``): the old bag is copied into the new one first (original times), the
 optimizer is rebuilt by re-feeding the recorded outcomes (``driver.rebuild``), and the run
 continues with the first unanswered duel, so every duel appears exactly once.
@@ -29,10 +34,12 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.logging import LoggingSeverity
 
+from localpbo_core.settings import DEFAULT_TIE_THRESHOLD
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
 from localpbo_ros.dds import host_scope, in_process_scope
+from localpbo_ros.judge_node import JudgeNode
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.param_bridge_node import ParamBridgeNode
@@ -40,6 +47,9 @@ from localpbo_ros.params import ParameterError
 from localpbo_ros.recorder_node import RecorderNode
 from localpbo_ros.sim_node import Evaluator, SimNode
 from localpbo_ros.summary import RunSummary
+
+HUMAN_DUEL_TIMEOUT_S = 86_400.0
+"""The optimizer's ``duel_timeout_s`` when a person answers (unless the settings give one)."""
 
 
 def run_suite(
@@ -53,12 +63,14 @@ def run_suite(
     timeout_s: float | None = None,
     bridge: dict[str, Any] | None = None,
     controllers: Sequence[Callable[[Context], Any]] = (),
+    judge: dict[str, Any] | None = None,
+    on_url: Callable[[str], None] | None = None,
 ) -> RunSummary:
     """Run optimizer, simulator, oracle (and recorder) until the budget is spent.
 
     Args:
         settings: optimizer-node parameters (see ``optimizer_node.PARAMS``); ignored except
-            for the timing ones when resuming (the bag's config rules).
+            for the timing ones and ``speculate`` when resuming (the bag's config rules).
         bag: output ``.mcap`` path.
         resume: a bag of a stopped/crashed run to continue.
         record: run the recorder (False only for the benchmark).
@@ -69,6 +81,9 @@ def run_suite(
             parameters instead of simulating (a space run: ``settings["space"]``).
         controllers: node factories (given the context) started in this process first, e.g.
             the worked example's controller.
+        judge: ``judge_node`` parameters: a person answers the duels in a browser instead of
+            the simulated oracle.
+        on_url: called once with the judge page's URL.
 
     Raises:
         ParameterError: a refused setting (named).
@@ -80,9 +95,12 @@ def run_suite(
     start = time.monotonic()
     outcomes: tuple[Any, ...] = ()
     settings = dict(settings)
+    if judge is not None:
+        settings.setdefault("duel_timeout_s", HUMAN_DUEL_TIMEOUT_S)
+        settings.setdefault("tie_threshold", DEFAULT_TIE_THRESHOLD)
     if resume is not None:
         recorded = load_run(resume)
-        timing = ("duel_timeout_s", "republish_period_s")
+        timing = ("duel_timeout_s", "republish_period_s", "speculate")
         kept: dict[str, Any] = {k: settings[k] for k in timing if k in settings}
         settings = {**settings_from_config(recorded.config), **kept}
         outcomes = recorded.outcomes
@@ -104,7 +122,15 @@ def run_suite(
         else:
             evaluator_node = SimNode(context=ctx, evaluator=evaluator)
         nodes.append(evaluator_node)
-        oracle = OracleNode(context=ctx)
+        oracle: OracleNode | JudgeNode
+        if judge is not None:
+            try:
+                oracle = JudgeNode(context=ctx, overrides=judge)
+            except ParameterError:
+                refused = True
+                raise
+        else:
+            oracle = OracleNode(context=ctx)
         nodes.append(oracle)
         for node in nodes:
             executor.add_node(node)
@@ -125,15 +151,25 @@ def run_suite(
         nodes.append(opt)
         executor.add_node(opt)
         budget = opt.driver.session.budget
+        url = ""
         while not opt.finished:
             executor.spin_once(timeout_sec=0.05)
+            if isinstance(oracle, JudgeNode) and oracle.state == "failed":
+                opt.error, opt.state = "judge_node cannot serve the run (see its log)", "failed"
+                opt.finished = True  # publishes nothing more
+                break
+            if isinstance(oracle, JudgeNode) and oracle.url != url:
+                url = oracle.url
+                if on_url is not None and url:
+                    on_url(url)
             if on_progress is not None:
                 on_progress(opt.driver.session.evaluations, budget)
             if timeout_s is not None and time.monotonic() - start > timeout_s:
                 opt.error, opt.state = f"no result within {timeout_s} s", "timeout"
                 break
-        # let the recorder take the last messages (final outcome, incumbent, status)
-        settle = time.monotonic() + 0.3
+        # let the recorder take the last messages (final outcome, incumbent, status), and a
+        # judge's page learn that the run is complete
+        settle = time.monotonic() + (0.3 if judge is None else 1.5)  # the page sees the end
         while time.monotonic() < settle:
             executor.spin_once(timeout_sec=0.02)
         node_summary = opt.summary()
@@ -148,8 +184,8 @@ def run_suite(
         )
     finally:
         for node in nodes:
-            if isinstance(node, ParamBridgeNode):
-                node.close()  # the controller gets its original parameters back
+            if isinstance(node, ParamBridgeNode | JudgeNode):
+                node.close()  # the controller gets its original parameters back; the page stops
         for node in nodes:
             executor.remove_node(node)
             node.destroy_node()
@@ -161,7 +197,7 @@ def run_suite(
         rclpy.shutdown(context=ctx)
 
 
-def _return_of(oracle: OracleNode, candidate_id: int | None) -> float | None:
+def _return_of(oracle: OracleNode | JudgeNode, candidate_id: int | None) -> float | None:
     return None if candidate_id is None else oracle.episode_return(candidate_id)
 
 

@@ -1,0 +1,167 @@
+"""Speculative decisions: the next ask prepared for every possible answer of the open duel.
+
+A person needs seconds to judge a duel; the optimizer needs a fraction of one to decide what to
+ask next (at d = 33 with a few hundred duels, TuRPBO's decision takes ~150 ms on one core). When
+a single duel of a :class:`~localpbo_core.session.Session` is still pending, only a handful of
+answers are possible — "first better", "second better", and "can't tell" when the run models
+ties — so the next decision can be computed for each of them *while the person watches*:
+
+* each possible answer gets a fork of the session (:meth:`Session.fork`: the optimizer
+  deep-copied, the problem shared), made in the caller's thread;
+* a background thread offers the answer to its fork and asks it for the next step, one answer
+  after another;
+* when the real answer arrives, :meth:`Speculation.take` returns the branch prepared for it
+  (waiting if that very branch is being computed), which the caller adopts in place of its
+  session; for any other answer it returns None and the caller decides as usual.
+
+With ``recommend=True`` the thread then computes, on one more fork, the run's current
+recommendation (:meth:`Session.recommendation`: the evaluated candidate with the highest
+posterior mean utility), for a person to see while judging, without delaying any decision.
+
+The optimizer is a deterministic state machine over (settings, seed, answers), and a fork
+shares nothing mutable with its origin, so an adopted branch holds exactly the state and the
+step the session would have produced itself: speculation changes when a decision is computed,
+never what it is (``tests/test_speculation.py`` checks bit-identical runs for every
+algorithm). An answer that a fork refuses (e.g. "can't tell" in a run without a tie model)
+leaves no branch.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+from localpbo_core.optimizers.base import Candidate
+from localpbo_core.session import Answer, Session, Step, Verdict
+
+__all__ = ["Branch", "Speculation", "possible_answers"]
+
+
+@dataclass(frozen=True)
+class Branch:
+    """The session after ``answer``: its verdict, the next step (None if the run is done or
+    the answer left duels pending) and the seconds the decision took."""
+
+    answer: Answer
+    session: Session
+    verdict: Verdict
+    step: Step | None
+    seconds: float
+
+
+def possible_answers(session: Session) -> tuple[Answer, ...]:
+    """Every answer the last pending duel can get: first better, second better, can't tell.
+
+    Raises:
+        ValueError: not exactly one duel is pending.
+    """
+    pending = session.pending()
+    if len(pending) != 1:
+        raise ValueError(f"speculation needs exactly one pending duel, {len(pending)} are")
+    duel = pending[0]
+    return (
+        Answer.decisive(duel, duel.first),
+        Answer.decisive(duel, duel.second),
+        Answer.indifferent(duel),
+    )
+
+
+class Speculation:
+    """Branches of ``session`` for each of :func:`possible_answers`, computed by
+    :meth:`start` in a daemon thread (or by :meth:`run` in the caller's).
+
+    ``session`` itself is never touched after construction, so the caller may keep offering
+    to it; a branch is only valid for the session state it was forked from.
+    """
+
+    def __init__(self, session: Session, recommend: bool = False) -> None:
+        self.answers = possible_answers(session)
+        self._forks = [session.fork() for _ in self.answers]
+        self._now: Session | None = session.fork() if recommend else None
+        self.recommendation: Candidate | None = None
+        """The current recommendation once computed (``recommend=True``), else None."""
+        self._branches: dict[Answer, Branch] = {}
+        self._computing: Answer | None = None
+        self._cancelled = False
+        self._finished = False
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> Speculation:
+        """Compute the branches in a background thread; returns self."""
+        self._thread = threading.Thread(target=self.run, name="localpbo-speculation", daemon=True)
+        self._thread.start()
+        return self
+
+    def run(self) -> None:
+        """Compute every branch in order until done or cancelled."""
+        try:
+            for answer, fork in zip(self.answers, self._forks, strict=True):
+                with self._cond:
+                    if self._cancelled:
+                        return
+                    self._computing = answer
+                branch = _decide(fork, answer)
+                with self._cond:
+                    if branch is not None:
+                        self._branches[answer] = branch
+                    self._computing = None
+                    self._cond.notify_all()
+            now, self._now = self._now, None
+            if now is not None and not self._cancelled:
+                self.recommendation = now.recommendation()
+        finally:
+            with self._cond:
+                self._finished = True
+                self._computing = None
+                self._forks = []
+                self._cond.notify_all()
+
+    @property
+    def ready(self) -> tuple[Answer, ...]:
+        """Answers whose branch is prepared."""
+        with self._cond:
+            return tuple(self._branches)
+
+    def branches(self) -> tuple[Branch, ...]:
+        """The prepared branches (in answer order)."""
+        with self._cond:
+            return tuple(self._branches.values())
+
+    @property
+    def computing(self) -> Answer | None:
+        """The answer whose branch is being computed now."""
+        with self._cond:
+            return self._computing
+
+    def take(self, answer: Answer, timeout: float | None = None) -> Branch | None:
+        """The branch prepared for ``answer`` (None if there is none) and stop the rest.
+
+        Waits (at most ``timeout`` seconds) only if that branch is being computed right now:
+        finishing it is never slower than starting the same decision again.
+        """
+        with self._cond:
+            self._cancelled = True
+            if self._computing == answer:
+                self._cond.wait_for(lambda: self._computing != answer, timeout=timeout)
+            return self._branches.get(answer)
+
+    def cancel(self) -> None:
+        """Compute no further branch (the current one finishes in the background)."""
+        with self._cond:
+            self._cancelled = True
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for the background thread (tests and benchmarks)."""
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+
+def _decide(fork: Session, answer: Answer) -> Branch | None:
+    t0 = time.perf_counter()
+    verdict = fork.offer(answer)
+    if not verdict.accepted:
+        return None
+    step = None if (fork.done or fork.step_open) else fork.ask()
+    return Branch(answer, fork, verdict, step, time.perf_counter() - t0)

@@ -1,0 +1,292 @@
+"""``judge_node``: a person answers the duels in a web browser, instead of ``oracle_node``.
+
+Subscribes ``/localpbo/run_config``, ``/localpbo/candidate``, ``/localpbo/episode_result``,
+``/localpbo/duel_request``, ``/localpbo/incumbent`` and ``/localpbo/status``; publishes
+``/localpbo/duel_outcome`` (with ``answer_seconds``) and ``/localpbo/status``.
+
+It serves a page (:mod:`localpbo_ros.judge_web`) at ``http://<host>:<port>/<secret>/``: the
+secret is made per run (``secrets.token_urlsafe``) and kept in the run's folder under
+``state_dir`` next to the answer journal, so a restarted judge serves the same path. The
+address is logged and written to ``url_file``. The page shows the current duel's candidates
+A and B (parameter values; for MuJoCo tasks their episodes replayed side by side,
+:mod:`localpbo_ros.rollouts`), which candidate is being evaluated while results are missing,
+progress, the incumbent and the answers so far, and takes "A better", "B better", "can't
+tell" and "skip" once both episode results are in. What counts as recorded, resuming, and the
+answer time: :mod:`localpbo_ros.judge`.
+
+The page binds to 127.0.0.1 unless ``host`` names another address and ``allow_remote`` is
+true (anyone who can reach the port and knows the URL can answer).
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import secrets
+import sys
+from pathlib import Path
+from typing import Any
+
+from rclpy.context import Context
+
+from localpbo_msgs_py import (
+    CandidateMsg,
+    DecodeError,
+    DecodeReason,
+    DuelRequest,
+    EpisodeResult,
+    Incumbent,
+    RunConfig,
+    Status,
+)
+from localpbo_msgs_py.topics import (
+    CANDIDATE,
+    DUEL_OUTCOME,
+    DUEL_REQUEST,
+    EPISODE_RESULT,
+    INCUMBENT,
+    STATUS,
+)
+from localpbo_ros.driver import problem_of
+from localpbo_ros.follower import FollowerNode
+from localpbo_ros.judge import Journal, JudgeCore, is_simulated
+from localpbo_ros.judge_web import JudgeWeb
+from localpbo_ros.params import Param, ParameterError
+from localpbo_ros.rollouts import RolloutCache
+
+DEFAULT_STATE_DIR = "~/.local/state/localpbo/judge"
+
+PARAMS = [
+    Param("host", "127.0.0.1", "Address the page binds to (loopback unless allow_remote)."),
+    Param(
+        "allow_remote",
+        False,
+        "Allow a host that is not a loopback address (anyone reaching it with the URL answers).",
+    ),
+    Param("port", 0, "TCP port of the page; 0 = a free one.", int_range=(0, 65535)),
+    Param(
+        "state_dir",
+        DEFAULT_STATE_DIR,
+        "Folder of the answer journals and URL secrets (one sub-folder per run).",
+    ),
+    Param("url_file", "", "File the page's URL is written to; empty = <state_dir>/url."),
+    Param(
+        "frame_stride",
+        4,
+        "Control steps between two frames of a replayed episode.",
+        int_range=(1, 1000),
+    ),
+    Param(
+        "rollout_cache",
+        16,
+        "Replayed episodes kept in memory (least recently used dropped).",
+        int_range=(0, 1000),
+    ),
+    Param(
+        "max_connections",
+        16,
+        "HTTP requests handled at once (more are closed at once).",
+        int_range=(1, 256),
+    ),
+]
+
+
+def check_host(host: str, allow_remote: bool) -> str:
+    """``host`` if it is a loopback address (or ``localhost``), or any address with
+    ``allow_remote``; ParameterError otherwise."""
+    if host == "localhost":
+        return "127.0.0.1"
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        raise ParameterError("host", f"{host[:80]!r} is not an IP address") from None
+    if not address.is_loopback and not allow_remote:
+        raise ParameterError(
+            "host",
+            f"{host} is not a loopback address; set allow_remote:=true to serve the page to "
+            "other hosts",
+        )
+    return host
+
+
+class JudgeNode(FollowerNode):
+    """The judge node (see module docstring)."""
+
+    def __init__(
+        self,
+        *,
+        context: Context | None = None,
+        overrides: dict[str, Any] | None = None,
+        cli_args: list[str] | None = None,
+    ) -> None:
+        super().__init__(
+            "judge_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
+        )
+        host = check_host(self.settings["host"], self.settings["allow_remote"])
+        self.state_dir = Path(os.path.expanduser(self.settings["state_dir"]))
+        url_file = self.settings["url_file"]
+        self.url_file = Path(os.path.expanduser(url_file)) if url_file else self.state_dir / "url"
+        self.url = ""
+        self._pub = self.publisher(DUEL_OUTCOME)
+        self.core = JudgeCore(
+            lambda outcome: self._pub.publish(outcome.encode()),
+            self.drop,
+            max_pending=self.settings["max_pending"],
+        )
+        self._rollouts: RolloutCache | None = None
+        try:
+            self.web = JudgeWeb(
+                self.core,
+                self.drop,
+                self.rollout,
+                host=host,
+                port=self.settings["port"],
+                max_connections=self.settings["max_connections"],
+            )
+        except OSError as exc:
+            port = self.settings["port"]
+            raise ParameterError("port", f"cannot serve on {host}:{port}: {exc}") from None
+        self.subscribe(CANDIDATE, self._on_candidate)
+        self.subscribe(EPISODE_RESULT, self._on_result)
+        self.subscribe(DUEL_REQUEST, self._on_request)
+        self.subscribe(INCUMBENT, self._on_incumbent)
+        self.subscribe(STATUS, self._on_status)
+
+    # ------------------------------------------------------------------ plumbing
+    def drop(self, reason: str, detail: str) -> None:
+        """Count and warn (throttled); called from the executor and the web threads."""
+        with self.core.lock:
+            super().drop(reason, detail)
+
+    def counter_snapshot(self) -> dict[str, int]:
+        """The node's and the judge's counters (answers, skips, ...), copied under the lock
+        the web threads count under."""
+        with self.core.lock:
+            return {**self.counters, **self.core.counters}
+
+    def status_info(self) -> dict[str, str]:
+        """The page's port (the URL's secret stays off the topics and the bag)."""
+        return {"port": str(self.web.port)}
+
+    def close(self) -> None:
+        """Stop serving the page."""
+        self.web.close()
+
+    def episode_return(self, candidate_id: int) -> float | None:
+        """The episode return received for a candidate (for ``localpbo run``'s summary)."""
+        return self.core.episode_return(candidate_id)
+
+    def rollout(self, candidate_id: int) -> dict[str, Any] | None:
+        """Candidate ``candidate_id``'s replayed episode (web threads)."""
+        with self.core.lock:
+            rollouts = self._rollouts
+            cand = self.core.candidates.get(candidate_id)
+        if rollouts is None or cand is None:
+            return None
+        return rollouts.get(candidate_id, cand.theta)
+
+    # ------------------------------------------------------------------ run
+    def reset(self) -> None:
+        """Forget the previous run (its journal stays on disk)."""
+        self.core.reset()
+        self._rollouts = None
+        self.url = ""
+
+    def adopt(self, config: RunConfig) -> None:
+        """Open the run's journal and secret, and publish the page's URL."""
+        problem = problem_of(config)
+        simulated = is_simulated(problem)
+        if simulated:
+            self._rollouts = RolloutCache(
+                problem,
+                config.seed,
+                stride=self.settings["frame_stride"],
+                max_entries=self.settings["rollout_cache"],
+            )
+        journal = Journal(self.state_dir / config.run_id)
+        secret = journal.secret(lambda: secrets.token_urlsafe(24))
+        answered = self.core.adopt(config, journal, secret, simulated=simulated)
+        self.url = self.web.url()
+        self.url_file.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        fd = os.open(self.url_file, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        try:
+            os.write(fd, (self.url + "\n").encode())
+        finally:
+            os.close(fd)
+        self.get_logger().info(
+            f"judge the duels of run {config.run_id} at {self.url} "
+            f"({answered} answers journaled in {journal.path})"
+        )
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_candidate(self, msg: object) -> None:
+        if self.hold(self._on_candidate, msg):
+            return
+        config = self.config
+        assert config is not None
+        cand = CandidateMsg.decode(
+            msg,
+            expected_run_id=config.run_id,
+            expected_dim=config.dim,
+            lower=config.lower,
+            upper=config.upper,
+        )
+        if isinstance(cand, DecodeError):
+            self.drop_decode(cand)
+            return
+        self.core.on_candidate(cand)
+
+    def _on_result(self, msg: object) -> None:
+        if self.hold(self._on_result, msg):
+            return
+        assert self.config is not None
+        res = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(res, DecodeError):
+            self.drop_decode(res)
+            return
+        for outcome in self.core.on_result(res):
+            self._pub.publish(outcome.encode())
+
+    def _on_request(self, msg: object) -> None:
+        if self.hold(self._on_request, msg):
+            return
+        assert self.config is not None
+        req = DuelRequest.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(req, DecodeError):
+            self.drop_decode(req)
+            return
+        stored = self.core.on_request(req)
+        if stored is not None:
+            self._pub.publish(stored.encode())
+
+    def _on_incumbent(self, msg: object) -> None:
+        if self.hold(self._on_incumbent, msg):
+            return
+        config = self.config
+        assert config is not None
+        inc = Incumbent.decode(msg, expected_run_id=config.run_id, expected_dim=config.dim)
+        if isinstance(inc, DecodeError):
+            self.drop_decode(inc)
+            return
+        self.core.on_incumbent(inc)
+
+    def _on_status(self, msg: object) -> None:
+        if self.config is None:
+            return  # reports of nodes before the run is known say nothing about it
+        status = Status.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(status, DecodeError):
+            if status.reason is not DecodeReason.WRONG_RUN:
+                self.drop_decode(status)
+            return
+        self.core.on_status(status)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``ros2 run localpbo_ros judge_node [--ros-args -p port:=8765]``."""
+    from localpbo_ros.entry import run_node
+
+    return run_node(JudgeNode, argv, stop_when_finished=False)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
