@@ -31,6 +31,7 @@ from localpbo_core.optimizers.registry import available_optimizers, optimizer_op
 from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
+    DEFAULT_TIE_THRESHOLD,
     RunSettings,
     SettingError,
 )
@@ -45,6 +46,8 @@ FLAGS = {
     "budget": "--budget",
     "initial_design": "--initial-design",
     "noise_fraction": "--noise",
+    "tie_threshold": "--tie-threshold",
+    "indifference": "--indifference",
     "optimizer_options": "--option",
     "problem_options": "--problem",
 }
@@ -163,6 +166,24 @@ def _build_parser() -> argparse.ArgumentParser:
         help="oracle noise std as a fraction of the problem's value range (paper: 0.1)",
     )
     bench.add_argument(
+        "--tie-threshold",
+        type=float,
+        nargs="?",
+        default=0.0,
+        const=DEFAULT_TIE_THRESHOLD,
+        metavar="EPS",
+        help="indifference threshold eps of the ordinal likelihood: 'can't tell' answers are "
+        f"used iff > 0 (default 0, the paper's model; the flag alone: {DEFAULT_TIE_THRESHOLD}, "
+        "the value for a person judging)",
+    )
+    bench.add_argument(
+        "--indifference",
+        type=float,
+        default=0.0,
+        help="the simulated oracle answers 'can't tell' when its noisy difference is below "
+        "this fraction of the value range (needs --tie-threshold > 0; default 0)",
+    )
+    bench.add_argument(
         "--batch-size", type=int, default=None, help="candidates per iteration q (default 1)"
     )
     bench.add_argument(
@@ -240,6 +261,12 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
     report.add_argument(
         "--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)"
     )
+    report.add_argument("--name", default="report.md", help="report file name in OUT")
+    report.add_argument(
+        "--figures", default=".", help="folder for the PNGs, relative to OUT (default OUT)"
+    )
+    report.add_argument("--notes", default=None, help="Markdown file appended to the report")
+    report.add_argument("--title", default="localpbo report", help="the report's heading")
 
 
 def _add_ros_commands(sub: argparse._SubParsersAction) -> None:
@@ -276,6 +303,8 @@ def bench(
     options: dict[str, dict[str, object]] | None = None,
     progress: bool = True,
     problem_options: dict[str, object] | None = None,
+    tie_threshold: float = 0.0,
+    indifference: float = 0.0,
 ) -> list[EvaluationRecord]:
     """Run every (algorithm, seed), write the outputs into ``out`` and return all records.
 
@@ -298,6 +327,8 @@ def bench(
             budget=budget,
             initial_design=initial_design,
             noise_fraction=noise,
+            tie_threshold=tie_threshold,
+            indifference=indifference,
             optimizer_options=options.get(alg, {}),
             problem_options=problem_options or {},
         )
@@ -339,7 +370,13 @@ def trace_document(settings: RunSettings, trace: RunTrace) -> dict[str, Any]:
             for cid in sorted(trace.native)
         ],
         "answers": [
-            {"duel_id": a.duel_id, "first": a.first, "second": a.second, "winner": a.winner}
+            {
+                "duel_id": a.duel_id,
+                "first": a.first,
+                "second": a.second,
+                "kind": a.kind.value,
+                "winner": a.winner,
+            }
             for a in trace.answers
         ],
         "records": [dict(zip(RESULT_COLUMNS, r.as_row(), strict=True)) for r in trace.records],
@@ -347,8 +384,10 @@ def trace_document(settings: RunSettings, trace: RunTrace) -> dict[str, Any]:
 
 
 def settings_document(settings: RunSettings) -> dict[str, Any]:
-    """The fields of ``settings`` as stored with a run (JSON types: tuples become lists)."""
-    doc = {
+    """The fields of ``settings`` as stored with a run (JSON types: tuples become lists).
+    ``tie_threshold`` and ``indifference`` appear only when > 0, so documents of runs without
+    "can't tell" answers are unchanged."""
+    doc: dict[str, Any] = {
         "algorithm": settings.algorithm,
         "problem": settings.problem,
         "seed": settings.seed,
@@ -358,6 +397,9 @@ def settings_document(settings: RunSettings) -> dict[str, Any]:
         "optimizer_options": dict(settings.optimizer_options),
         "problem_options": dict(settings.problem_options),
     }
+    if settings.tie_threshold > 0 or settings.indifference > 0:
+        doc["tie_threshold"] = settings.tie_threshold
+        doc["indifference"] = settings.indifference
     return dict(json.loads(json.dumps(doc, default=str)))
 
 
@@ -527,6 +569,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             options=per_alg,
             progress=progress,
             problem_options=getattr(args, "problem_options", {}),
+            tie_threshold=getattr(args, "tie_threshold", 0.0),
+            indifference=getattr(args, "indifference", 0.0),
         )
     except SettingError as exc:
         parser.exit(2, f"localpbo: error: {flag_of(exc.field)}: {exc.reason}\n")

@@ -34,7 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from localpbo_core.experiments.paper import paper_seconds
+from localpbo_core.experiments.claims import claims_table
+from localpbo_core.experiments.paper import PAPER_POLICY_WARM_START, paper_seconds, problem_key
 from localpbo_core.settings import SettingError
 
 
@@ -180,10 +181,12 @@ def group_table(runs: Sequence[StoredRun], alpha: float) -> list[str]:
         },
     }
     results = {m: compare(v, alpha) for m, v in metrics.items()}
+    paper = _paper_finals(runs[0])
     lines = [
         "| algorithm | runs | evaluations | final best-seen | p (Holm) "
-        "| final cumulative | p (Holm) |",
-        "| --- | ---: | ---: | --- | ---: | --- | ---: |",
+        "| final cumulative | p (Holm) |"
+        + (" paper best-seen | paper cumulative |" if paper else ""),
+        "| --- | ---: | ---: | --- | ---: | --- | ---: |" + (" ---: | ---: |" if paper else ""),
     ]
     for a in algorithms:
         cells = [a]
@@ -195,8 +198,38 @@ def group_table(runs: Sequence[StoredRun], alpha: float) -> list[str]:
             values = np.array(list(metrics[m][a].values()))
             cells.append(_mark(_mean_std(values), a, best, tied))
             cells.append("best" if a == best else f"{adjusted[a]:.3g}")
+        if paper:
+            theirs = paper.get(a)
+            cells += ["--", "--"] if theirs is None else [f"{m:g} ± {sd:g}" for m, sd in theirs]
         lines.append("| " + " | ".join(cells) + " |")
     return lines
+
+
+def _paper_finals(
+    run: StoredRun,
+) -> dict[str, tuple[tuple[float, float], tuple[float, float]]] | None:
+    """The paper's final best-seen and cumulative (mean, std) per algorithm for this group, if
+    the paper reports them (policy search with warm start, at its configuration)."""
+    if run.spec != "policy_warm_start" or run.variant:
+        return None
+    return PAPER_POLICY_WARM_START.get(run.settings["problem"])
+
+
+def _paper_configuration(run: StoredRun) -> bool:
+    """A run as the paper timed it: the algorithm's defaults (within-model runs: the true
+    hyperparameters only), the spec's default budget, a GP sample path's own options only."""
+    s = run.settings
+    options = set(s["optimizer_options"]) - ({"hyperparameters"} if run.within_model else set())
+    task = set(s["problem_options"]) - (
+        {"dim", "lengthscale", "instance"} if s["problem"] == "gp_sample" else set()
+    )
+    return (
+        run.algorithm_label == s["algorithm"]
+        and not options
+        and not task
+        and s["budget"] is None
+        and s.get("noise_fraction", 0.1) == 0.1
+    )
 
 
 def compute_table(runs: Sequence[StoredRun]) -> list[str]:
@@ -216,14 +249,14 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
         ]
         secs = np.array([r.optimizer_seconds for r in mine])
         s = mine[0].settings
-        comparable = (
-            alg == s["algorithm"]
-            and not s["optimizer_options"]
-            and not s["problem_options"]
-            and s["budget"] is None
-            and s["initial_design"] == 2
+        paper = (
+            paper_seconds(
+                problem_key(s["problem"], s["problem_options"], mine[0].within_model),
+                s["algorithm"],
+            )
+            if _paper_configuration(mine[0])
+            else None
         )
-        paper = paper_seconds(s["problem"], s["algorithm"]) if comparable else None
         ratio = "" if paper is None or secs.mean() <= 0 else f"{paper / secs.mean():.3g}x"
         label = problem + (f" ({variant})" if variant else "")
         lines.append(
@@ -322,14 +355,31 @@ def plot_gp_summary(runs: Sequence[StoredRun], path: Path) -> bool:
 
 
 # ---------------------------------------------------------------------- report
-def write_report(paths: Iterable[str | Path], out: Path, alpha: float = 0.05) -> Path:
-    """Write ``report.md`` and the PNGs into ``out`` (module docstring); return the report."""
+def write_report(
+    paths: Iterable[str | Path],
+    out: Path,
+    alpha: float = 0.05,
+    *,
+    name: str = "report.md",
+    figures: str = ".",
+    notes: Path | None = None,
+    title: str = "localpbo report",
+) -> Path:
+    """Write the report ``out/name`` and its PNGs into ``out/figures`` (module docstring);
+    return the report's path. ``notes``: a Markdown file appended verbatim."""
     if not 0.0 < alpha < 1.0:
         raise SettingError("--alpha", f"must lie in (0, 1), got {alpha!r}")
+    if Path(figures).is_absolute() or ".." in Path(figures).parts:
+        raise SettingError("--figures", f"must be a folder inside --out, got {figures!r}")
+    if notes is not None and not notes.is_file():
+        raise SettingError("--notes", f"{notes} is not a file")
     runs = load_runs(paths)
     out.mkdir(parents=True, exist_ok=True)
+    fig_dir = out / figures
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    prefix = "" if figures == "." else Path(figures).as_posix() + "/"
     lines = [
-        "# localpbo report",
+        f"# {title}",
         "",
         f"{len(runs)} runs. Mean ± sample std over seeds. **Bold**: the best mean; "
         f"<u>underlined</u>: not significantly different from the best (two-sided paired "
@@ -341,19 +391,24 @@ def write_report(paths: Iterable[str | Path], out: Path, alpha: float = 0.05) ->
     for r in runs:
         groups.setdefault((r.spec, r.problem_label, r.variant), []).append(r)
     for (spec, problem, variant), members in sorted(groups.items()):
-        name = "__".join(p for p in ("curves", spec, problem, variant) if p) + ".png"
-        title = problem + (f" ({variant})" if variant else "")
-        plot_curves(members, title, out / name)
+        png = "__".join(p for p in ("curves", spec, problem, variant) if p) + ".png"
+        heading = problem + (f" ({variant})" if variant else "")
+        plot_curves(members, heading, fig_dir / png)
         lines += [
-            f"## {spec}: {title}",
+            f"## {spec}: {heading}",
             "",
             *group_table(members, alpha),
             "",
-            f"![curves]({name})",
+            f"![curves]({prefix}{png})",
             "",
         ]
-    if plot_gp_summary(runs, out / "gp_summary.png"):
-        lines += ["## GP sample paths: final best-seen against d", "", "![gp](gp_summary.png)", ""]
+    if plot_gp_summary(runs, fig_dir / "gp_summary.png"):
+        lines += [
+            "## GP sample paths: final best-seen against d",
+            "",
+            f"![gp]({prefix}gp_summary.png)",
+            "",
+        ]
     lines += [
         "## Compute time",
         "",
@@ -363,14 +418,63 @@ def write_report(paths: Iterable[str | Path], out: Path, alpha: float = 0.05) ->
         "",
         *compute_table(runs),
         "",
+        "## The paper's claims",
+        "",
+        "Each claim in the paper's words, how it is read as a test on our final values, and "
+        'whether our runs agree ("not run": we have no runs for it yet).',
+        "",
+        *claims_table(runs, alpha),
+        "",
     ]
-    path = out / "report.md"
+    if notes is not None:
+        lines += [notes.read_text().rstrip("\n"), ""]
+    path = out / name
     path.write_text("\n".join(lines))
     return path
 
 
+RESULTS_PAGE = {
+    "results": "docs/results",
+    "out": "docs",
+    "name": "RESULTS.md",
+    "figures": "results/figures",
+    "notes": "docs/results/notes.md",
+    "title": "Results: localpbo next to the paper",
+}
+"""Where ``docs/RESULTS.md`` comes from (paths relative to the repository root): the stored
+runs under ``docs/results``, the notes appended verbatim. :func:`write_results_page` is
+``localpbo report docs/results --out docs --name RESULTS.md --figures results/figures
+--notes docs/results/notes.md --title "Results: localpbo next to the paper"``."""
+
+
+def write_results_page(root: Path, out: Path | None = None) -> Path:
+    """Regenerate ``docs/RESULTS.md`` of the repository at ``root`` (into ``out`` instead of
+    ``root/docs`` if given, e.g. to compare with the committed page)."""
+    page = RESULTS_PAGE
+    return write_report(
+        [root / page["results"]],
+        root / page["out"] if out is None else out,
+        name=page["name"],
+        figures=page["figures"],
+        notes=root / page["notes"],
+        title=page["title"],
+    )
+
+
 def main_report(args: Any) -> int:
     """The ``localpbo report`` command."""
-    path = write_report(args.results, Path(args.out), alpha=args.alpha)
+    path = write_report(
+        args.results,
+        Path(args.out),
+        alpha=args.alpha,
+        name=args.name,
+        figures=args.figures,
+        notes=None if args.notes is None else Path(args.notes),
+        title=args.title,
+    )
     print(f"report: {path}")
     return 0
+
+
+if __name__ == "__main__":  # python -m localpbo_core.report: regenerate docs/RESULTS.md
+    print(f"report: {write_results_page(Path(__file__).resolve().parents[1])}")

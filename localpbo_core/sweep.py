@@ -20,17 +20,23 @@
   a run whose worker died is retried by Ray (``max_retries``); a run that raised is reported
   at the end and not stored, so the next sweep tries it again. ``--max-runs N`` runs only
   the first N unfinished runs; ``--problems``, ``--algorithms``, ``--variants`` (labels) and
-  ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state.
+  ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
+  SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
+  summary; what finished is stored, and the same command continues.
 """
 
 from __future__ import annotations
 
+import contextlib
 import gzip
 import json
 import logging
 import os
+import signal
+import sys
+import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,12 +51,14 @@ MAX_RETRIES = 3
 
 @dataclass
 class SweepResult:
-    """What a sweep did: run ids finished now, skipped as already stored, and failed."""
+    """What a sweep did: run ids finished now, skipped as already stored, failed, and left
+    to run (beyond ``max_runs``, or unfinished when the sweep was interrupted)."""
 
     finished: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
     pending: list[str] = field(default_factory=list)
+    interrupted: bool = False
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -165,6 +173,7 @@ def sweep(
     in_process: bool = False,
     progress: bool = True,
     on_stored: Callable[[PlannedRun], None] | None = None,
+    stop_on_sigterm: bool = False,
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -178,6 +187,12 @@ def sweep(
         in_process: run sequentially in this process, without Ray.
         progress: show a progress bar with ETA.
         on_stored: called after each run is stored.
+        stop_on_sigterm: SIGTERM interrupts the sweep like Ctrl-C while it runs (called
+            from the main thread; ``localpbo sweep`` sets it).
+
+    Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
+    stops the runs under way and returns with ``interrupted`` set; every run finished before
+    is stored, the others are ``pending`` and the same call continues with them.
     """
     from tqdm import tqdm
 
@@ -210,18 +225,46 @@ def sweep(
 
     try:
         if in_process:
-            for plan in todo:
-                try:
-                    doc = execute_run(plan)
-                except Exception as exc:  # a bug in one run must not stop the sweep
-                    fail(plan, f"{type(exc).__name__}: {exc}")
-                    continue
-                store(plan, doc)
+            with _sigterm_interrupts(stop_on_sigterm):
+                for plan in todo:
+                    try:
+                        doc = execute_run(plan)
+                    except Exception as exc:  # a bug in one run must not stop the sweep
+                        fail(plan, f"{type(exc).__name__}: {exc}")
+                        continue
+                    store(plan, doc)
         elif todo:
-            _run_on_ray(todo, address, workers, store, fail)
+            _run_on_ray(todo, address, workers, store, fail, stop_on_sigterm)
+    except KeyboardInterrupt:
+        result.interrupted = True
+        done = set(result.finished) | set(result.failed)
+        result.pending = [p.run_id for p in todo if p.run_id not in done] + result.pending
     finally:
         bar.close()
     return result
+
+
+LOOPBACK_ONLY_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+"""Ray's switch between a single-machine head (every server on the loopback address; the
+default on Windows and macOS) and a cluster head (servers on all interfaces). The embedded
+Ray sets it to ``0`` before Ray is imported, unless the user set it."""
+
+
+def start_ray(address: str | None, workers: int | None) -> bool:
+    """Connect to the Ray cluster at ``address``, or start the embedded one (``workers`` CPUs,
+    servers on the loopback address only, no dashboard) unless Ray is already running.
+    Returns True if this call started or connected Ray (the caller shuts it down)."""
+    if address is None:
+        os.environ.setdefault(LOOPBACK_ONLY_ENV, "0")
+    import ray
+
+    if ray.is_initialized():
+        return False
+    kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
+    if address is None:
+        kwargs["num_cpus"] = workers or os.cpu_count() or 1
+    ray.init(address=address, logging_level=logging.ERROR, **kwargs)
+    return True
 
 
 def _run_on_ray(
@@ -230,42 +273,46 @@ def _run_on_ray(
     workers: int | None,
     store: Callable[[PlannedRun, dict[str, Any]], None],
     fail: Callable[[PlannedRun, str], None],
+    stop_on_sigterm: bool,
 ) -> None:
+    started = start_ray(address, workers)
     import ray
 
-    started = False
-    if not ray.is_initialized():
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
-        if address is None:
-            kwargs["num_cpus"] = workers or os.cpu_count() or 1
-            # the embedded Ray serves this machine only: its head listens on loopback
-            kwargs["_node_ip_address"] = "127.0.0.1"
-        ray.init(address=address, logging_level=logging.ERROR, **kwargs)
-        started = True
     try:
-        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
-        refs = {task.remote(plan): plan for plan in todo}
-        waiting = list(refs)
-        while waiting:
-            done, waiting = ray.wait(waiting, num_returns=1)
-            for ref in done:
-                plan = refs.pop(ref)
-                try:
-                    doc = ray.get(ref)
-                except ray.exceptions.RayError as exc:
-                    fail(plan, str(exc).strip().splitlines()[-1])
-                    continue
-                store(plan, doc)
+        # after ray.init, whose own SIGTERM handler exits at once
+        with _sigterm_interrupts(stop_on_sigterm):
+            task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
+            refs = {task.remote(plan): plan for plan in todo}
+            waiting = list(refs)
+            while waiting:
+                done, waiting = ray.wait(waiting, num_returns=1)
+                for ref in done:
+                    plan = refs.pop(ref)
+                    try:
+                        doc = ray.get(ref)
+                    except ray.exceptions.RayError as exc:
+                        fail(plan, str(exc).strip().splitlines()[-1])
+                        continue
+                    store(plan, doc)
     finally:
         if started:
             ray.shutdown()
+
+
+def _spec_path(path: str) -> str:
+    """A bundled spec as its path in the repository (no machine-specific prefix)."""
+    bundled = Path(__file__).resolve().parent / "experiments"
+    resolved = Path(path).resolve()
+    if resolved.parent == bundled:
+        return f"localpbo_core/experiments/{resolved.name}"
+    return path
 
 
 def _spec_document(spec: ExperimentSpec) -> dict[str, Any]:
     return {
         "name": spec.name,
         "paper": spec.paper,
-        "path": spec.path,
+        "path": _spec_path(spec.path) if spec.path else spec.path,
         "seeds": list(spec.seeds),
         "problems": [p.label for p in spec.problems],
         "algorithms": [a.label for a in spec.algorithms],
@@ -322,6 +369,7 @@ def main_sweep(args: Any) -> int:
         workers=args.workers,
         in_process=args.in_process,
         progress=not args.no_progress,
+        stop_on_sigterm=True,
     )
     print(
         f"{spec.name}: {len(result.finished)} runs finished, {len(result.skipped)} already "
@@ -330,4 +378,29 @@ def main_sweep(args: Any) -> int:
     )
     for run_id, error in sorted(result.failed.items()):
         print(f"FAILED {run_id}: {error}")
+    if result.interrupted:
+        print("interrupted: the same command continues with the runs left", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 1 if result.failed else 0
+
+
+EXIT_INTERRUPTED = 130
+"""Exit status of an interrupted sweep (128 + SIGINT, as shells report Ctrl-C)."""
+
+
+@contextlib.contextmanager
+def _sigterm_interrupts(enabled: bool) -> Iterator[None]:
+    """If ``enabled`` (and in the main thread), SIGTERM raises ``KeyboardInterrupt`` in the
+    block, so it stops the sweep like Ctrl-C; the previous handler is restored after."""
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -108,6 +108,8 @@ def test_budget_counts_every_evaluation_on_hartmann6(tmp_path) -> None:
         (["--noise", "-1"], "--noise"),
         (["--seeds", "a"], ""),
         (["--batch-size", "0"], "batch_size"),
+        (["--indifference", "0.1"], "--indifference"),
+        (["--tie-threshold", "-0.5"], "--tie-threshold"),
     ],
 )
 def test_bad_options_fail_at_start_naming_the_option(tmp_path, capsys, args, needle) -> None:
@@ -139,11 +141,24 @@ def test_help_explains_every_option(capsys) -> None:
         "--batch-size",
         "--option",
         "--torch-threads",
+        "--tie-threshold",
+        "--indifference",
     ):
         assert opt in text
     with pytest.raises(SystemExit):
         main(["demo", "--help"])
     assert "--out" in capsys.readouterr().out
+
+
+def test_tie_threshold_flag_alone_is_the_default_for_a_person() -> None:
+    from localpbo_core.cli import _build_parser
+    from localpbo_core.settings import DEFAULT_TIE_THRESHOLD
+
+    parser = _build_parser()
+    base = ["bench", "--problem", "hartmann6", "--algorithm", "sobol", "--out", "x"]
+    assert parser.parse_args(base).tie_threshold == 0.0
+    assert parser.parse_args([*base, "--tie-threshold"]).tie_threshold == DEFAULT_TIE_THRESHOLD
+    assert parser.parse_args([*base, "--tie-threshold", "1"]).tie_threshold == 1.0
 
 
 @pytest.mark.slow

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -11,17 +15,32 @@ from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
 from localpbo_core.report import write_report
 from localpbo_core.settings import SettingError
-from localpbo_core.sweep import read_run, run_path, select_runs, sweep
+from localpbo_core.sweep import LOOPBACK_ONLY_ENV, read_run, run_path, select_runs, start_ray, sweep
 
+os.environ.setdefault(LOOPBACK_ONLY_ENV, "0")  # before Ray is imported, as the sweep does
 ray = pytest.importorskip("ray")
 
 
 @pytest.fixture(scope="module")
 def local_ray():
-    """One local Ray with 2 workers for the module (the sweep reuses a running Ray)."""
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+    """The sweep's embedded Ray with 2 workers for the module (the sweep reuses it)."""
+    assert start_ray(None, 2)
     yield
     ray.shutdown()
+
+
+def test_embedded_ray_listens_on_loopback_only(local_ray) -> None:
+    psutil = pytest.importorskip("psutil")
+    ours = {os.getpid()} | {p.pid for p in psutil.Process().children(recursive=True)}
+    listening = [
+        c
+        for c in psutil.net_connections(kind="tcp")
+        if c.status == psutil.CONN_LISTEN and c.pid in ours
+    ]
+    assert listening  # GCS, raylet, workers
+    assert all(c.laddr.ip in ("127.0.0.1", "::1", "::ffff:127.0.0.1") for c in listening), [
+        (c.pid, c.laddr) for c in listening
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -129,3 +148,52 @@ def test_report_is_byte_identical(reference, tmp_path) -> None:
         assert (a.parent / name).read_bytes() == (b.parent / name).read_bytes(), name
     text = a.read_text()
     assert "| sobol | 2 | 8 |" in text and "p (Holm)" in text
+
+
+def test_interrupted_sweep_keeps_what_finished_and_continues(spec, reference, tmp_path) -> None:
+    def stop_after_first(plan) -> None:
+        raise KeyboardInterrupt
+
+    first = sweep(spec, tmp_path, in_process=True, progress=False, on_stored=stop_after_first)
+    assert first.interrupted and len(first.finished) == 1 and len(first.pending) == 3
+    assert [p.name for p in (tmp_path / "runs").iterdir()] == [f"{first.finished[0]}.json.gz"]
+    second = sweep(spec, tmp_path, in_process=True, progress=False)
+    assert not second.interrupted and second.skipped == first.finished
+    assert sorted(second.finished) == sorted(first.pending)
+    assert_same_runs(spec, tmp_path, reference)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
+    """A real ``localpbo sweep`` process: the signal stops it within seconds, exit 130, the
+    summary printed, every stored run complete; running it again finishes the rest."""
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "synthetic", "--out", str(out)]
+    cmd += ["--problems", "hartmann6", "--algorithms", "turpbo", "--seeds", "0-5"]
+    cmd += ["--workers", "2", "--no-progress"]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as in a terminal
+    )
+    runs = out / "runs"
+    deadline = time.monotonic() + 120
+    while not (runs.is_dir() and any(runs.glob("*.json.gz"))):  # one run stored: mid-sweep
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.1)
+    proc.send_signal(signum)
+    sent = time.monotonic()
+    stdout, stderr = proc.communicate(timeout=60)
+    assert time.monotonic() - sent < 15
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted: the same command continues" in stderr
+    finished = sorted(runs.glob("*.json.gz"))
+    assert 1 <= len(finished) < 6 and "left" in stdout
+    for path in finished:
+        assert read_run(path)["run"]["seed"] in range(6)
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert f"{len(finished)} already stored" in again.stdout
+    assert len(list(runs.glob("*.json.gz"))) == 6

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from localpbo_core.experiments import load_spec
 from localpbo_core.problems import make_problem
-from localpbo_core.problems.calibrate import main, sobol_points, value_range
+from localpbo_core.problems.calibrate import main, sobol_points, sobol_values, spread, value_range
 from localpbo_core.problems.synthetic import SYNTHETIC_VALUE_RANGES
 
 
@@ -20,8 +21,18 @@ def test_synthetic_value_range_reproduced(name: str) -> None:
     "name", ["hopper", "walker2d", pytest.param("swimmer", marks=pytest.mark.slow)]
 )
 def test_mujoco_value_range_reproduced(name: str) -> None:
-    width, _, _ = value_range(name, 256)
+    values = sobol_values(name, 256)
+    width, _, _ = spread(values)
     assert width == pytest.approx(make_problem(name).value_range, rel=1e-12)
+    # the policy specs' noise scale: the 1st-99th percentile spread of the same returns
+    robust, low, high = spread(values, (1, 99))
+    assert values.min() <= low < high <= values.max() and robust < width
+    for spec in ("policy_warm_start", "policy_no_warm_start"):
+        for run in load_spec(spec).runs():
+            if run.problem_label == name:
+                assert run.settings.problem_options["value_range"] == pytest.approx(
+                    robust, rel=1e-12
+                )
 
 
 def test_sobol_points_are_seeded() -> None:
@@ -33,3 +44,7 @@ def test_sobol_points_are_seeded() -> None:
 def test_cli_prints_value_range(capsys: pytest.CaptureFixture[str]) -> None:
     main(["--problem", "hartmann6", "--points", "1024"])
     assert "hartmann6: value_range=" in capsys.readouterr().out
+    main(["--problem", "hartmann6", "--points", "1024", "--quantiles", "1,99"])
+    out = capsys.readouterr().out
+    width, low, high = value_range("hartmann6", 1024, (1, 99))
+    assert f"value_range={width!r} (percentiles 1, 99: {low:.6g}, {high:.6g};" in out
