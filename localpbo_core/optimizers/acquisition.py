@@ -189,6 +189,33 @@ def thompson_batch(
     return np.stack(out)
 
 
+def thompson_discrete(path: Callable[[Tensor], Tensor], raw: np.ndarray) -> np.ndarray:
+    """Thompson sampling on the raw candidates only (TuRBO's scheme, no local refinement):
+    path ``j`` takes the raw candidate where it is largest among those not yet taken by
+    paths ``0..j-1`` (a batch without repeats). Returns ``(P, d)``.
+
+    Args:
+        path: maps ``(N, d)`` to ``(N, P)``: P pathwise Thompson samples
+            (:class:`~localpbo_core.surrogate.sampling.SamplePaths` or any callable).
+        raw: ``(N, d)`` candidates, ``N >= P``.
+    """
+    raw = np.asarray(raw, dtype=np.float64)
+    if isinstance(path, SamplePaths):
+        vals = np.asarray(path.values(raw), dtype=np.float64)
+    else:
+        with torch.no_grad():
+            vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
+    if vals.shape[1] > raw.shape[0]:
+        raise ValueError(f"{vals.shape[1]} paths need at least as many raw candidates")
+    taken = np.zeros(raw.shape[0], dtype=bool)
+    out = []
+    for j in range(vals.shape[1]):
+        i = int(np.argmax(np.where(taken, -np.inf, vals[:, j])))
+        taken[i] = True
+        out.append(raw[i])
+    return np.stack(out)
+
+
 def _thompson_analytic(
     paths: SamplePaths,
     raw: np.ndarray,

@@ -3,7 +3,8 @@
 Each iteration: refit the pairwise GP (learned hyperparameters, warm-started from the
 previous fit), build TuRBO's lengthscale-weighted box of side L around the trust-region
 center, select q candidates in the box by Thompson sampling (default; pathwise sample
-paths, TuRBO perturbation masks, 1024 raw samples, 5 L-BFGS-B restarts), (q)EUBO or
+paths, TuRBO perturbation masks, 1024 raw samples, 5 L-BFGS-B restarts; or, with
+``acquisition="ts_discrete"``, the best raw candidate per path as in TuRBO), (q)EUBO or
 expected improvement (EI, App. D.7 ablation), and duel every candidate against the center.
 
 EI (``acquisition="ei"``): ``EI(x) = E[max(f(x) - mu(x_inc), 0)] = (m - m*) Phi(z) + s
@@ -39,7 +40,12 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import torch
 
-from localpbo_core.optimizers.acquisition import ei_batch, eubo_batch, thompson_batch
+from localpbo_core.optimizers.acquisition import (
+    ei_batch,
+    eubo_batch,
+    thompson_batch,
+    thompson_discrete,
+)
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
@@ -52,7 +58,7 @@ from localpbo_core.optimizers.trust_region import (
 from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, check_choice, check_int
 
-ACQUISITIONS = ("ts", "qeubo", "ei")
+ACQUISITIONS = ("ts", "ts_discrete", "qeubo", "ei")
 
 
 class TuRPBO(PreferenceOptimizer):
@@ -61,8 +67,11 @@ class TuRPBO(PreferenceOptimizer):
     Args:
         dim, seed, budget, initial_design, warm_start: see ``PreferenceOptimizer``.
         batch_size: q >= 1 candidates per iteration (TuRPBO table: 1).
-        acquisition: ``"ts"`` (Thompson sampling, default), ``"qeubo"`` or ``"ei"``
-            (expected improvement over the incumbent's posterior mean; q = 1 only).
+        acquisition: ``"ts"`` (Thompson sampling, default: each sample path maximised by
+            L-BFGS-B from its best raw candidates), ``"ts_discrete"`` (Thompson sampling on
+            the raw candidates only, TuRBO's own scheme: the refinement moves every
+            coordinate, and in high dimension it ends on the box's faces), ``"qeubo"`` or
+            ``"ei"`` (expected improvement over the incumbent's posterior mean; q = 1 only).
         num_raw_samples: raw candidates in the box (table: 1024).
         num_restarts: L-BFGS-B restarts (table: 5).
         num_features: random features per pathwise sample path.
@@ -177,6 +186,9 @@ class TuRPBO(PreferenceOptimizer):
         if self.acquisition == "ts":
             path = surrogate.sample_paths(q, gen, num_features=self.num_features)
             return thompson_batch(path, raw, lb, ub, num_restarts=self.num_restarts)
+        if self.acquisition == "ts_discrete":
+            path = surrogate.sample_paths(q, gen, num_features=self.num_features)
+            return thompson_discrete(path, raw)
         if self.acquisition == "ei":
             inc = torch.tensor(self._candidates[self._require_incumbent()].theta)
             with torch.no_grad():

@@ -12,6 +12,7 @@ from localpbo_core.optimizers.acquisition import (
     maximize_in_box,
     qeubo_from_moments,
     thompson_batch,
+    thompson_discrete,
 )
 from localpbo_core.surrogate import PairwiseGPSurrogate
 
@@ -160,3 +161,24 @@ def test_thompson_batch_analytic_and_autograd_routes_agree_and_are_deterministic
         va = paths(torch.tensor(a)).numpy().diagonal()
         vc = paths(torch.tensor(c)).numpy().diagonal()
     np.testing.assert_allclose(va, vc, rtol=0, atol=1e-6)
+
+
+def test_thompson_discrete_takes_each_paths_best_raw_candidate_without_repeats() -> None:
+    s = _fitted_surrogate(3, 20, seed=2)
+    paths = s.sample_paths(4, torch.Generator().manual_seed(5), num_features=256)
+    raw = np.random.default_rng(6).random((64, 3))
+    got = thompson_discrete(paths, raw)
+    vals = paths.values(raw)
+    taken: list[int] = []
+    for j in range(4):  # brute force: the best row of path j among the rows not yet taken
+        order = [i for i in np.argsort(-vals[:, j], kind="stable") if i not in taken]
+        taken.append(int(order[0]))
+    np.testing.assert_array_equal(got, raw[taken])
+    assert len(set(taken)) == 4
+    # the autograd route (any callable) picks the same rows
+    np.testing.assert_array_equal(thompson_discrete(lambda x: paths(x), raw), got)
+    # two paths that agree everywhere still give two different candidates
+    twin = thompson_discrete(lambda x: paths(x)[:, :1].repeat(1, 2), raw)
+    assert not np.array_equal(twin[0], twin[1])
+    with pytest.raises(ValueError, match="raw candidates"):
+        thompson_discrete(paths, raw[:3])

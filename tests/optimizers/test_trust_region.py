@@ -176,7 +176,16 @@ def test_turpbo_finds_a_better_point_with_the_real_surrogate() -> None:
 
 
 @pytest.mark.parametrize(
-    ("acq", "q"), [("ts", 1), ("ts", 2), ("qeubo", 1), ("qeubo", 2), ("ei", 1)]
+    ("acq", "q"),
+    [
+        ("ts", 1),
+        ("ts", 2),
+        ("ts_discrete", 1),
+        ("ts_discrete", 2),
+        ("qeubo", 1),
+        ("qeubo", 2),
+        ("ei", 1),
+    ],
 )
 def test_turpbo_real_surrogate_is_deterministic_and_stays_in_region(acq: str, q: int) -> None:
     runs = []
