@@ -17,6 +17,7 @@ from .episode import (
     Recording,
 )
 from .tasks import (
+    MAX_MIN_VALUE_RANGES,
     TRUE_VALUE_SEEDS,
     VALUE_RANGES,
     LinearPolicyTask,
@@ -24,11 +25,13 @@ from .tasks import (
     ThetaFromWeights,
     available_tasks,
     make_task,
+    recorded_value_range,
 )
 
 __all__ = [
     "HOPPER_V5",
     "INVERTED_PENDULUM_V5",
+    "MAX_MIN_VALUE_RANGES",
     "SWIMMER_V5",
     "TRUE_VALUE_SEEDS",
     "VALUE_RANGES",
@@ -44,4 +47,5 @@ __all__ = [
     "available_tasks",
     "load_ars_policy",
     "make_task",
+    "recorded_value_range",
 ]

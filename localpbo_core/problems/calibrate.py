@@ -1,16 +1,14 @@
 """Offline calibration of the problems: value ranges and the Sobol baseline.
 
-``value_range`` convention (all problems): max − min of the noise-free value (``true_value``)
-over the first N points of ``scipy.stats.qmc.Sobol(d, scramble=True, seed=0)`` on [0,1]^d;
-N = 10,000 for the synthetic functions, N = 256 for the MuJoCo tasks (5 episodes per point).
-The results are stored as constants (``SYNTHETIC_VALUE_RANGES``, ``localpbo_sims.VALUE_RANGES``).
-
-``--quantiles LO,HI`` gives the spread between two percentiles of the same values instead.
-The paper-reproduction specs of the policy tasks (``policy_*.yaml``) set their noise scale
-with ``--quantiles 1,99``: the returns of random linear policies are heavy-tailed, and on
-Walker2d one of the 256 points (a return of −1438, where the 1st–99th percentiles span
-−202 to −5) sets max − min on its own, which makes 10 % noise as large as the whole spread
-of ordinary policies.
+``value_range`` convention: the spread of the noise-free value (``true_value``) over the
+first N points of ``scipy.stats.qmc.Sobol(d, scramble=True, seed=0)`` on [0,1]^d. Synthetic
+functions: max − min over N = 10,000 points (``SYNTHETIC_VALUE_RANGES``). MuJoCo tasks: the
+spread between the 1st and 99th percentiles over N = 256 points, 5 episodes per point
+(``--quantiles 1,99``; ``localpbo_sims.VALUE_RANGES``, also the policy specs' noise scale):
+the returns of random linear policies are heavy-tailed, and on Walker2d one of the 256 points
+(a return of −1438, where the 1st–99th percentiles span −202 to −5) sets max − min on its
+own, which makes 10 % noise as large as the whole spread of ordinary policies. Their earlier
+max − min values are kept as ``localpbo_sims.MAX_MIN_VALUE_RANGES`` for bags recorded then.
 
 The Sobol baseline reproduces the paper's policy-search reference (App. D.6
 "Policy-Search", Sobol column: best-seen after the paper's budget of 15d evaluations): for

@@ -9,6 +9,7 @@ lazily, so ``localpbo_core`` works without mujoco/gymnasium installed.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from localpbo_core.validation import SettingError
@@ -19,6 +20,16 @@ from .synthetic import SYNTHETIC_PROBLEMS, make_synthetic
 
 MUJOCO_PROBLEMS: tuple[str, ...] = ("hopper", "swimmer", "walker2d")
 """Linear-policy tasks of ``localpbo_sims`` (paper Sec. 6 "Policy Search"; swimmer: demo)."""
+
+MUJOCO_OPTIONS: tuple[str, ...] = (
+    "alive_bonus",
+    "weight_low",
+    "weight_high",
+    "episode_steps",
+    "cache_size",
+    "value_range",
+)
+"""The options a MuJoCo task takes (``localpbo_sims.LinearPolicyTask``)."""
 
 
 def available_problems() -> list[str]:
@@ -58,15 +69,40 @@ def make_problem(name: str, **options: Any) -> Problem:
         raise ImportError(
             f"problem {name!r} needs localpbo_sims (mujoco, gymnasium): {exc}"
         ) from exc
-    allowed = {
-        "alive_bonus",
-        "weight_low",
-        "weight_high",
-        "episode_steps",
-        "cache_size",
-        "value_range",
-    }
+    allowed = set(MUJOCO_OPTIONS)
     unknown = sorted(set(options) - allowed)
     if unknown:
         raise SettingError(unknown[0], f"unknown option for {name}; valid: {sorted(allowed)}")
     return localpbo_sims.make_task(name, **options)
+
+
+def recorded_problem_options(
+    name: str, options: dict[str, Any], problem: Problem
+) -> dict[str, Any]:
+    """The problem options a run config records: a MuJoCo task's noise scale made explicit.
+
+    The task's ``value_range`` (the oracle's noise scale, paper Sec. 6) is written into the
+    options when they do not give it, so a recorded run is replayed with the scale it was made
+    with even if the task's default changes. Other problems' options are returned unchanged.
+    """
+    out = dict(options)
+    if name in MUJOCO_PROBLEMS and "value_range" not in out:
+        value_range = float(problem.value_range)
+        if math.isfinite(value_range):
+            out["value_range"] = value_range
+    return out
+
+
+def replayed_problem_options(name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """The problem options of a recorded run config (inverse of
+    :func:`recorded_problem_options`): a MuJoCo task recorded without ``value_range`` was made
+    when the default noise scale was max − min (``localpbo_sims.MAX_MIN_VALUE_RANGES``), and
+    gets that scale back. Other problems' options are returned unchanged."""
+    out = dict(options)
+    if name in MUJOCO_PROBLEMS and "value_range" not in out and set(out) <= set(MUJOCO_OPTIONS):
+        import localpbo_sims
+
+        legacy = localpbo_sims.recorded_value_range(name, **out)
+        if math.isfinite(legacy):
+            out["value_range"] = legacy
+    return out

@@ -21,12 +21,15 @@ def test_synthetic_value_range_reproduced(name: str) -> None:
     "name", ["hopper", "walker2d", pytest.param("swimmer", marks=pytest.mark.slow)]
 )
 def test_mujoco_value_range_reproduced(name: str) -> None:
+    from localpbo_sims import MAX_MIN_VALUE_RANGES
+
     values = sobol_values(name, 256)
     width, _, _ = spread(values)
-    assert width == pytest.approx(make_problem(name).value_range, rel=1e-12)
-    # the policy specs' noise scale: the 1st-99th percentile spread of the same returns
+    assert width == pytest.approx(MAX_MIN_VALUE_RANGES[name], rel=1e-12)
+    # the default and the policy specs' noise scale: the 1st-99th percentile spread
     robust, low, high = spread(values, (1, 99))
     assert values.min() <= low < high <= values.max() and robust < width
+    assert robust == pytest.approx(make_problem(name).value_range, rel=1e-12)
     for spec in ("policy_warm_start", "policy_no_warm_start"):
         for run in load_spec(spec).runs():
             if run.problem_label == name:

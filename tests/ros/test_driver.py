@@ -113,3 +113,43 @@ def test_task_box_is_native_units() -> None:
     problem = make_problem("swimmer", **SMALL_TASK)
     assert cfg.lower == tuple(problem.to_native(np.zeros(16)))
     assert cfg.upper == tuple(problem.to_native(np.ones(16)))
+
+
+def test_run_config_records_the_noise_scale_and_old_configs_keep_theirs() -> None:
+    import dataclasses
+
+    from localpbo_ros.driver import make_run_config, settings_of
+    from localpbo_sims import MAX_MIN_VALUE_RANGES, VALUE_RANGES
+
+    from localpbo_core.session import build_problem
+    from localpbo_core.settings import RunSettings
+
+    config = make_run_config("vr", RunSettings(algorithm="sobol", problem="hopper", budget=4))
+    assert config.options["task"] == {"value_range": VALUE_RANGES["hopper"]}
+    assert build_problem(settings_of(config)).value_range == VALUE_RANGES["hopper"]
+    # a config recorded before the task recorded it: the max - min scale of that time
+    old = dataclasses.replace(config, options={**config.options, "task": {}})
+    assert settings_of(old).problem_options == {"value_range": MAX_MIN_VALUE_RANGES["hopper"]}
+    # a resumed old run records the scale explicitly: still the same run, another scale is not
+    from localpbo_ros.bagtools import same_run_config
+
+    explicit = dataclasses.replace(
+        config, options={**config.options, "task": {"value_range": MAX_MIN_VALUE_RANGES["hopper"]}}
+    )
+    assert same_run_config(old, explicit) and same_run_config(explicit, old)
+    assert not same_run_config(old, config)
+    # ... but only for the calibrated definition; others had (and have) no default scale
+    steps = dataclasses.replace(config, options={**config.options, "task": {"episode_steps": 9}})
+    assert settings_of(steps).problem_options == {"episode_steps": 9}
+    # an explicit scale is kept either way; synthetic problems record nothing
+    given = make_run_config(
+        "vr",
+        RunSettings(
+            algorithm="sobol", problem="hopper", budget=4, problem_options={"value_range": 5.0}
+        ),
+    )
+    assert given.options["task"] == {"value_range": 5.0}
+    assert settings_of(given).problem_options == {"value_range": 5.0}
+    synthetic = make_run_config("vr", RunSettings(algorithm="sobol", problem="hartmann6"))
+    assert synthetic.options["task"] == {}
+    assert settings_of(synthetic).problem_options == {}

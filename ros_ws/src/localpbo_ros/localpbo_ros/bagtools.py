@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from localpbo_core.problems.registry import replayed_problem_options
 from localpbo_msgs_py import CandidateMsg, DuelOutcome, DuelRequest, OutcomeKind, RunConfig
 from localpbo_msgs_py.bag import BagWriter, read_messages, summarize
 from localpbo_msgs_py.topics import ALL_TOPICS, CANDIDATE, DUEL_OUTCOME, DUEL_REQUEST, RUN_CONFIG
@@ -33,6 +34,21 @@ class RecordedRun:
     complete: bool
 
 
+def same_run_config(a: RunConfig, b: RunConfig) -> bool:
+    """Whether two run configs describe the same run: equal, or equal once a MuJoCo task's
+    noise scale is made explicit (a bag resumed from one recorded before run configs named
+    the task's ``value_range`` holds the old config and the resumed run's explicit one)."""
+
+    def canonical(c: RunConfig) -> str:
+        task = c.options.get("task")
+        if not isinstance(task, dict):
+            return c.to_json()
+        options = {**c.options, "task": replayed_problem_options(c.task, task)}
+        return replace(c, options=options).to_json()
+
+    return a.to_json() == b.to_json() or canonical(a) == canonical(b)
+
+
 def load_run(path: str | os.PathLike[str]) -> RecordedRun:
     """Decode the run recorded in ``path`` (finished or cut off by a crash).
 
@@ -46,7 +62,7 @@ def load_run(path: str | os.PathLike[str]) -> RecordedRun:
             continue
         if config is None:
             config = decoded
-        elif decoded.to_json() != config.to_json():
+        elif not same_run_config(decoded, config):
             raise ValueError(
                 f"{path}: holds run configs of two runs ({config.run_id!r}, {decoded.run_id!r})"
             )

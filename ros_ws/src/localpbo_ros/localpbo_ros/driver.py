@@ -48,6 +48,7 @@ import numpy as np
 
 from localpbo_core.optimizers.base import Candidate
 from localpbo_core.problems import Problem
+from localpbo_core.problems.registry import recorded_problem_options, replayed_problem_options
 from localpbo_core.session import (
     Answer,
     DuelRequest,
@@ -98,7 +99,7 @@ def settings_of(config: RunConfig) -> RunSettings:
         tie_threshold=oracle.get("tie_threshold", 0.0),
         indifference=oracle.get("indifference", 0.0),
         optimizer_options=optimizer,
-        problem_options=section(config, "task"),
+        problem_options=replayed_problem_options(config.task, section(config, "task")),
     )
 
 
@@ -179,7 +180,9 @@ def make_run_config(
         oracle["indifference"] = settings.indifference
     options = {
         "optimizer": {**settings.optimizer_options, "initial_design": settings.initial_design},
-        "task": dict(settings.problem_options),
+        "task": recorded_problem_options(
+            settings.problem, dict(settings.problem_options), session.problem
+        ),
         "oracle": oracle,
         "failure": {"policy": failure_policy, "max_retries": int(max_retries)},
     }
