@@ -169,9 +169,10 @@ def random_references(
 
 def table(diagnoses: Sequence[RunDiagnosis], random_means: dict[str, float]) -> list[str]:
     """One line per problem and algorithm: means over the seeds."""
+    width = max([len("algorithm"), *(len(d.algorithm) for d in diagnoses)]) + 1
     header = (
-        f"{'problem':<18}{'algorithm':<10}{'seeds':>6}{'flipped':>9}{'|Δ|/σ':>8}"
-        f"{'proposals':>11}{'random':>10}{'at bound':>10}{'won':>7}{'lost streak':>13}"
+        f"{'problem':<18}{'algorithm':<{width}}{'seeds':>6}{'flipped':>9}{'|Δ|/σ':>8}"
+        f"{'proposals':>12}{'random':>12}{'at bound':>10}{'won':>7}{'lost streak':>13}"
     )
     lines = [header]
     groups: dict[tuple[str, str], list[RunDiagnosis]] = {}
@@ -180,11 +181,11 @@ def table(diagnoses: Sequence[RunDiagnosis], random_means: dict[str, float]) -> 
     for (problem, algorithm), ds in sorted(groups.items()):
         streaks = [d.longest_lost_streak for d in ds]
         lines.append(
-            f"{problem:<18}{algorithm:<10}{len(ds):>6}"
+            f"{problem:<18}{algorithm:<{width}}{len(ds):>6}"
             f"{np.mean([d.flipped for d in ds]):>9.2f}"
             f"{np.mean([d.median_gap_sigma for d in ds]):>8.2f}"
-            f"{np.mean([d.proposals_mean for d in ds]):>11.4g}"
-            f"{random_means.get(problem, math.nan):>10.4g}"
+            f"{np.mean([d.proposals_mean for d in ds]):>12.4g}"
+            f"{random_means.get(problem, math.nan):>12.4g}"
             f"{np.mean([d.at_bound for d in ds]):>10.3f}"
             f"{np.mean([d.newer_won for d in ds]):>7.2f}"
             f"{f'{min(streaks)}-{max(streaks)}':>13}"
