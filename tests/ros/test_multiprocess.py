@@ -3,7 +3,6 @@ executables' defaults (LOCALHOST discovery range + the loopback/SHM Fast DDS pro
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -17,6 +16,8 @@ from localpbo_msgs_py import Status
 from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.topics import STATUS
 
+from .processes import host_env, start_node
+
 
 def tx_packets() -> int:
     """Packets sent so far on every network interface except loopback."""
@@ -29,26 +30,11 @@ def tx_packets() -> int:
 
 def test_four_processes_complete_a_run(tmp_path: Path) -> None:
     sent_before = tx_packets()
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if k
-        not in (
-            "ROS_AUTOMATIC_DISCOVERY_RANGE",
-            "FASTRTPS_DEFAULT_PROFILES_FILE",
-            "LOCALPBO_DDS_OPEN",
-        )
-    }
-    env["ROS_DOMAIN_ID"] = "57"
+    env = host_env(57)
     bag = tmp_path / "mp.mcap"
 
-    def start(module: str, *ros_args: str) -> subprocess.Popen:
-        cmd = [sys.executable, "-m", f"localpbo_ros.{module}"]
-        if ros_args:
-            cmd += ["--ros-args", *ros_args]
-        return subprocess.Popen(
-            cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
+    def start(node: str, *ros_args: str) -> subprocess.Popen[str]:
+        return start_node(env, node, *ros_args)
 
     helpers = [
         start("recorder_node", "-p", f"path:={bag}"),

@@ -7,10 +7,8 @@ on where a signal lands relative to a result in flight."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,6 +18,8 @@ from localpbo_ros.replay import verify
 from localpbo_msgs_py import CandidateMsg, EpisodeResult, EpisodeStatus, Status
 from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT, STATUS
+
+from .processes import host_env, start_node
 
 BUDGET = 48  # long enough that sim_1 is frozen well before the last batch
 WORKER_TIMEOUT_S = 2.0
@@ -60,29 +60,13 @@ def _wait(bag: Path, cond, what: str, limit: float = 120.0):
 
 
 def test_killed_worker_process_is_taken_over(tmp_path: Path) -> None:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if k
-        not in (
-            "ROS_AUTOMATIC_DISCOVERY_RANGE",
-            "FASTRTPS_DEFAULT_PROFILES_FILE",
-            "LOCALPBO_DDS_OPEN",
-        )
-    }
-    env["ROS_DOMAIN_ID"] = "98"
+    env = host_env(98)
     bag = tmp_path / "pool.mcap"
 
-    def start(module: str, *ros_args: str) -> subprocess.Popen:
-        if module.endswith(".py"):
-            cmd = [sys.executable, str(Path(__file__).with_name(module))]
-        else:
-            cmd = [sys.executable, "-m", f"localpbo_ros.{module}"]
-        if ros_args:
-            cmd += ["--ros-args", *ros_args]
-        return subprocess.Popen(
-            cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
+    def start(node: str, *ros_args: str) -> subprocess.Popen[str]:
+        if node.endswith(".py"):
+            node = str(Path(__file__).with_name(node))
+        return start_node(env, node, *ros_args)
 
     recorder = start("recorder_node", "-p", f"path:={bag}")
     oracle = start("oracle_node")
