@@ -303,9 +303,21 @@ def plot_curves(runs: Sequence[StoredRun], title: str, path: Path) -> None:
     _save(fig, path)
 
 
+def gp_summary_runs(runs: Sequence[StoredRun]) -> list[StoredRun]:
+    """The runs the GP summary draws: GP sample paths, algorithms as they are (an entry
+    without its own label); variants of an ablation, e.g. ``turpbo_ts_discrete``, have their
+    own tables and curves."""
+    return [
+        r
+        for r in runs
+        if r.settings["problem"] == "gp_sample" and r.algorithm_label == r.settings["algorithm"]
+    ]
+
+
 def plot_gp_summary(runs: Sequence[StoredRun], path: Path) -> bool:
-    """Final best-seen vs d per lengthscale, within- and out-of-model (paper App. D.4)."""
-    gp = [r for r in runs if r.settings["problem"] == "gp_sample"]
+    """Final best-seen vs d per lengthscale, within- and out-of-model (paper App. D.4), of
+    :func:`gp_summary_runs`."""
+    gp = gp_summary_runs(runs)
     if not gp:
         return False
     plt = _pyplot()

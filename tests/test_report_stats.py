@@ -46,3 +46,29 @@ def test_compare_marks_best_and_ties() -> None:
     assert best == "a"
     assert tied == {"a": True, "b": True, "c": False}
     assert adjusted["c"] < 0.05 <= adjusted["b"]
+
+
+def test_gp_summary_leaves_out_ablation_variants() -> None:
+    from localpbo_core.report import StoredRun, gp_summary_runs
+
+    def run(problem: str, algorithm: str, label: str) -> StoredRun:
+        return StoredRun(
+            spec="s",
+            problem_label=problem,
+            algorithm_label=label,
+            variant="",
+            seed=0,
+            within_model=False,
+            settings={"problem": problem, "algorithm": algorithm},
+            best_seen=np.zeros(1),
+            cumulative=np.zeros(1),
+            optimizer_seconds=0.0,
+        )
+
+    runs = [
+        run("gp_sample", "turpbo", "turpbo"),
+        run("gp_sample", "turpbo", "turpbo_ts_discrete"),
+        run("gp_sample", "prefsqp", "prefsqp_full"),
+        run("hartmann6", "sobol", "sobol"),
+    ]
+    assert gp_summary_runs(runs) == runs[:1]
