@@ -195,9 +195,13 @@ class LinearPolicyTask:
             self.obs_mean, self.obs_std = ars.obs_mean, ars.obs_std
         else:
             self.obs_mean, self.obs_std = np.zeros(self.obs_dim), np.ones(self.obs_dim)
-        default_box = (self.weight_low, self.weight_high) == (-1.0, 1.0)
-        bonus_changed = alive_bonus and spec.kind == "planar_walker"
-        same_definition = default_box and not bonus_changed and episode_steps == EPISODE_STEPS
+        same_definition = calibrated_definition(
+            name,
+            alive_bonus=alive_bonus,
+            weight_low=weight_low,
+            weight_high=weight_high,
+            episode_steps=episode_steps,
+        )
         if value_range is not None:
             self.value_range = float(value_range)
         else:
@@ -345,8 +349,23 @@ def recorded_value_range(name: str, **options: Unpack[TaskOptions]) -> float:
     """The value range of a run recorded without one: ``MAX_MIN_VALUE_RANGES[name]`` when the
     options keep the calibrated definition (box [-1, 1], no alive bonus, 1000 steps), else NaN
     (such a run needed an explicit value range for a noisy oracle then as now)."""
-    task = LinearPolicyTask(name, **options)
-    return MAX_MIN_VALUE_RANGES[name] if task.calibrated else float("nan")
+    return MAX_MIN_VALUE_RANGES[name] if calibrated_definition(name, **options) else float("nan")
+
+
+def calibrated_definition(
+    name: str,
+    *,
+    alive_bonus: bool = False,
+    weight_low: float = -1.0,
+    weight_high: float = 1.0,
+    episode_steps: int = EPISODE_STEPS,
+    **_: object,
+) -> bool:
+    """Whether the task ``name`` with these options is the one ``VALUE_RANGES`` was calibrated
+    for: box [-1, 1], 1000-step episodes, and no alive bonus where the task has one."""
+    bonus_changed = alive_bonus and _TASKS[name].spec.kind == "planar_walker"
+    default_box = (float(weight_low), float(weight_high)) == (-1.0, 1.0)
+    return default_box and not bonus_changed and episode_steps == EPISODE_STEPS
 
 
 def make_task(name: str, **options: Unpack[TaskOptions]) -> LinearPolicyTask:

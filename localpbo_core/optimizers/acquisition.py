@@ -175,8 +175,7 @@ def thompson_batch(
     raw = np.asarray(raw, dtype=np.float64)
     if isinstance(path, SamplePaths):
         return _thompson_analytic(path, raw, lb, ub, num_restarts, maxiter)
-    with torch.no_grad():
-        vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
+    vals = _path_values(path, raw)
     out = []
     for j in range(vals.shape[1]):
         starts = raw[np.argsort(-vals[:, j], kind="stable")[:num_restarts]]
@@ -187,6 +186,15 @@ def thompson_batch(
         xs, fs = maximize_in_box(obj, starts, lb, ub, maxiter)
         out.append(xs[int(np.argmax(fs))])
     return np.stack(out)
+
+
+def _path_values(path: Callable[[Tensor], Tensor], raw: np.ndarray) -> np.ndarray:
+    """``(N, P)`` float64 values of the sample paths at ``raw``: the closed form of
+    :class:`~localpbo_core.surrogate.sampling.SamplePaths`, else ``path`` without gradients."""
+    if isinstance(path, SamplePaths):
+        return np.asarray(path.values(raw), dtype=np.float64)
+    with torch.no_grad():
+        return path(torch.tensor(raw, dtype=torch.float64)).numpy()
 
 
 def thompson_discrete(path: Callable[[Tensor], Tensor], raw: np.ndarray) -> np.ndarray:
@@ -200,11 +208,7 @@ def thompson_discrete(path: Callable[[Tensor], Tensor], raw: np.ndarray) -> np.n
         raw: ``(N, d)`` candidates, ``N >= P``.
     """
     raw = np.asarray(raw, dtype=np.float64)
-    if isinstance(path, SamplePaths):
-        vals = np.asarray(path.values(raw), dtype=np.float64)
-    else:
-        with torch.no_grad():
-            vals = path(torch.tensor(raw, dtype=torch.float64)).numpy()
+    vals = _path_values(path, raw)
     if vals.shape[1] > raw.shape[0]:
         raise ValueError(f"{vals.shape[1]} paths need at least as many raw candidates")
     taken = np.zeros(raw.shape[0], dtype=bool)

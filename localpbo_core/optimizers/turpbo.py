@@ -183,12 +183,11 @@ class TuRPBO(PreferenceOptimizer):
         lb, ub = trust_region_bounds(center, ls.reshape(-1), self.tr.length)
         raw = perturbed_candidates(center, lb, ub, self.num_raw_samples, rng)
         gen = torch.Generator().manual_seed(int(rng.integers(0, 2**62)))
-        if self.acquisition == "ts":
+        if self.acquisition in ("ts", "ts_discrete"):
             path = surrogate.sample_paths(q, gen, num_features=self.num_features)
+            if self.acquisition == "ts_discrete":
+                return thompson_discrete(path, raw)
             return thompson_batch(path, raw, lb, ub, num_restarts=self.num_restarts)
-        if self.acquisition == "ts_discrete":
-            path = surrogate.sample_paths(q, gen, num_features=self.num_features)
-            return thompson_discrete(path, raw)
         if self.acquisition == "ei":
             inc = torch.tensor(self._candidates[self._require_incumbent()].theta)
             with torch.no_grad():
