@@ -107,13 +107,9 @@ class FollowerNode(SuiteNode, abc.ABC):
             self._early.append((handler, msg))
         return True
 
-    def candidate_for(self, msg: object, worker_id: str) -> CandidateMsg | None:
-        """Decode a candidate of the served run for the worker ``worker_id``.
-
-        Returns None for a malformed candidate (dropped and counted by its decode reason) and
-        for one assigned to another worker of a pool (counted as ``candidates_for_others``).
-        Call only once the run config is known (after :meth:`hold`).
-        """
+    def candidate(self, msg: object) -> CandidateMsg | None:
+        """Decode a candidate of the served run; None for a malformed one (dropped and counted
+        by its decode reason). Call only once the run config is known (after :meth:`hold`)."""
         config = self.config
         assert config is not None
         cand = CandidateMsg.decode(
@@ -126,7 +122,13 @@ class FollowerNode(SuiteNode, abc.ABC):
         if isinstance(cand, DecodeError):
             self.drop_decode(cand)
             return None
-        if cand.worker and cand.worker != worker_id:
+        return cand
+
+    def candidate_for(self, msg: object, worker_id: str) -> CandidateMsg | None:
+        """:meth:`candidate` for the worker ``worker_id`` of a pool: also None for one
+        assigned to another worker (counted as ``candidates_for_others``)."""
+        cand = self.candidate(msg)
+        if cand is not None and cand.worker and cand.worker != worker_id:
             self.counters["candidates_for_others"] += 1
             return None
         return cand

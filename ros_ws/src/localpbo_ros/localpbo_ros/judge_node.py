@@ -30,7 +30,6 @@ from typing import Any
 from rclpy.context import Context
 
 from localpbo_msgs_py import (
-    CandidateMsg,
     DecodeError,
     DecodeReason,
     DuelRequest,
@@ -222,19 +221,9 @@ class JudgeNode(FollowerNode):
     def _on_candidate(self, msg: object) -> None:
         if self.hold(self._on_candidate, msg):
             return
-        config = self.config
-        assert config is not None
-        cand = CandidateMsg.decode(
-            msg,
-            expected_run_id=config.run_id,
-            expected_dim=config.dim,
-            lower=config.lower,
-            upper=config.upper,
-        )
-        if isinstance(cand, DecodeError):
-            self.drop_decode(cand)
-            return
-        self.core.on_candidate(cand)
+        cand = self.candidate(msg)
+        if cand is not None:
+            self.core.on_candidate(cand)
 
     def _on_result(self, msg: object) -> None:
         if self.hold(self._on_result, msg):
