@@ -39,6 +39,12 @@ believed GP is then almost flat; measured mean best value on Hartmann 6 over see
 2.03 learned, 2.91 fixed (optimum 3.32).
 ``hyperparameter_refit_every=1`` relearns every iteration.
 
+**Fixed hyperparameters** (the paper's within-model runs, App. D.4): the ``hyperparameters``
+option of the other model-based algorithms (:func:`~localpbo_core.optimizers.surrogate_refit.
+check_hyperparameters`), e.g. ``{"lengthscale": 0.1, "outputscale": 1.0}``. A given lengthscale
+is never learned and a given outputscale replaces ``outputscale``; when both are given nothing
+is learned, the kernel never changes, and the chain is never restarted after its first burn-in.
+
 Sampler schedule: a chain started afresh, or continued after new hyperparameters, takes
 ``burn_in`` LinESS steps; otherwise (one duel appended, same kernel: the Cholesky factor of
 ``M`` is extended by one row) ``steps_per_iteration`` steps. With Takeno et al.'s confident
@@ -63,7 +69,7 @@ likelihood of :mod:`localpbo_core.surrogate.ordinal`, sampled as in
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -71,6 +77,7 @@ from scipy.special import ndtr
 
 from localpbo_core.optimizers.acquisition import _lbfgsb_multistart
 from localpbo_core.optimizers.preference_optimizer import KingOfTheHillOptimizer, step_generator
+from localpbo_core.optimizers.surrogate_refit import check_hyperparameters
 from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
 from localpbo_core.surrogate.skew_gp import ConditionedGP, DuelPosteriorChain
 from localpbo_core.validation import SettingError, check_float, check_int
@@ -118,6 +125,7 @@ class HBEI(KingOfTheHillOptimizer):
             at iterations 0, k, 2k, ... (Takeno et al.: 10) and hold them in between.
         outputscale: the fixed kernel variance ``s`` (default Takeno et al.'s 1e4 in these
             units, see above), or None to learn it with the lengthscales.
+        hyperparameters: fixed lengthscale and/or outputscale (see above); None: as above.
     """
 
     name = "hbei"
@@ -137,6 +145,7 @@ class HBEI(KingOfTheHillOptimizer):
         hyperparameter_refit_every: int = 10,
         outputscale: float | None = TAKENO_OUTPUTSCALE,
         tie_threshold: float = 0.0,
+        hyperparameters: Mapping[str, object] | None = None,
     ) -> None:
         if isinstance(batch_size, bool) or batch_size != 1:
             raise SettingError(
@@ -165,6 +174,12 @@ class HBEI(KingOfTheHillOptimizer):
             if outputscale is None
             else check_float("outputscale", outputscale, minimum=0.0, minimum_open=True)
         )
+        fixed = check_hyperparameters(hyperparameters, self.dim)
+        self._fixed_lengthscale: torch.Tensor | None = None
+        if fixed is not None and fixed.lengthscale is not None:
+            self._fixed_lengthscale = torch.tensor(fixed.lengthscale, dtype=torch.float64)
+        if fixed is not None and fixed.outputscale is not None:
+            self.outputscale = fixed.outputscale
         self.chain = DuelPosteriorChain(tie_threshold=self.tie_threshold)
         self._laplace: PairwiseGPSurrogate | None = None
         self._iterations = 0
@@ -183,13 +198,19 @@ class HBEI(KingOfTheHillOptimizer):
             self._laplace = PairwiseGPSurrogate.fit(
                 torch.tensor(self.train_inputs(), dtype=torch.float64),
                 torch.tensor(self.comparisons(), dtype=torch.long),
+                lengthscale=self._fixed_lengthscale,
                 outputscale=self.outputscale,
                 warm_start=self._laplace,
                 ties=torch.tensor(self.ties(), dtype=torch.long),
                 tie_threshold=self.tie_threshold,
             )
         assert self._laplace is not None
-        return self._laplace.lengthscale.numpy().copy(), float(self._laplace.outputscale), relearn
+        learned = self._fixed_lengthscale is None or self.outputscale is None
+        return (
+            self._laplace.lengthscale.numpy().copy(),
+            float(self._laplace.outputscale),
+            relearn and learned,
+        )
 
     def _propose_thetas(self, q: int) -> list[np.ndarray]:
         rng = step_generator(self.seed, self._step)

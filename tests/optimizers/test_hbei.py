@@ -144,3 +144,53 @@ def test_restarts_may_not_exceed_raw_samples() -> None:
     with pytest.raises(SettingError) as err:
         make_optimizer("hbei", 2, seed=0, budget=6, num_raw_samples=3, num_restarts=5)
     assert err.value.field == "num_restarts"
+
+
+@pytest.mark.parametrize(
+    ("fixed", "lengthscale", "outputscale"),
+    [
+        ({"lengthscale": 0.2, "outputscale": 1.0}, [0.2, 0.2], 1.0),
+        ({"lengthscale": [0.2, 0.3]}, [0.2, 0.3], 1.0e4),
+    ],
+)
+def test_fixed_hyperparameters_hold_and_the_chain_is_never_restarted(
+    fixed: dict, lengthscale: list[float], outputscale: float
+) -> None:
+    opt = make_optimizer(
+        "hbei", 2, seed=1, budget=16, hyperparameter_refit_every=3, hyperparameters=fixed
+    )
+    assert isinstance(opt, HBEI)
+    kernels = []
+    while not opt.done:
+        batch = opt.ask()
+        kernels.append((opt.chain.lengthscale.copy(), opt.chain.outputscale))
+        opt.tell([Outcome(d.first, d.second) for d in batch.duels])
+    for ls, s in kernels[1:]:  # the first ask is the initial design: no chain yet
+        np.testing.assert_array_equal(ls, lengthscale)
+        assert s == outputscale
+    assert opt.surrogate is not None
+    np.testing.assert_array_equal(opt.surrogate.lengthscale.numpy(), lengthscale)
+    assert float(opt.surrogate.outputscale) == outputscale
+    # one fresh chain, then only extensions: the kernel never changed
+    assert opt.chain.full_factorizations == 1
+
+
+def test_learned_lengthscales_restart_the_chain() -> None:
+    opt = make_optimizer("hbei", 2, seed=1, budget=16, hyperparameter_refit_every=3)
+    assert isinstance(opt, HBEI)
+    drive(opt)
+    assert opt.chain.full_factorizations > 1
+
+
+@pytest.mark.parametrize(
+    ("value", "field"),
+    [
+        ({"lengthscale": -1.0}, "hyperparameters.lengthscale"),
+        ({"outputscale": 0.0}, "hyperparameters.outputscale"),
+        ({"noise": 0.1}, "hyperparameters.noise"),
+    ],
+)
+def test_bad_hyperparameters_raise_setting_error(value: dict, field: str) -> None:
+    with pytest.raises(SettingError) as err:
+        make_optimizer("hbei", 2, seed=0, budget=6, hyperparameters=value)
+    assert err.value.field == field
