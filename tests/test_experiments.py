@@ -56,6 +56,7 @@ def test_bundled_specs_parse(name: str) -> None:
         "ablation_turpbo_acquisition",
         "ablation_turpbo_thompson",
         "ablation_prefsqp_line_search",
+        "ablation_hbei_within",
         "tiny",
         "policy_warm_start",
     ],
@@ -95,6 +96,15 @@ def test_within_model_gives_true_hyperparameters_and_seed_instances() -> None:
             assert hp == {"lengthscale": 0.5, "outputscale": 1.0}
     out = load_spec("gp_out_of_model", validate=False).runs()
     assert all("hyperparameters" not in r.settings.optimizer_options for r in out)
+
+
+def test_within_model_keeps_hyperparameters_a_spec_gives() -> None:
+    runs = load_spec("ablation_hbei_within", validate=False).runs()
+    options = {(r.algorithm_label, r.seed): r.settings.optimizer_options for r in runs}
+    assert options[("hbei_true", 0)] == {
+        "hyperparameters": {"lengthscale": 0.1, "outputscale": 1.0}
+    }
+    assert options[("hbei_takeno", 0)] == {"hyperparameters": {"lengthscale": 0.1}}
 
 
 def _refusal(change, field: str, tmp_path: Path) -> None:
