@@ -104,7 +104,10 @@ def find_mode(
     max_iter: int = 200,
     ordinal: Ordinal | None = None,
 ) -> tuple[Tensor, Tensor, int]:
-    """Newton's method with backtracking on ``psi`` (convex in ``a``) from ``a0``.
+    """Newton's method with backtracking on ``psi`` (convex in ``a``) from ``a0``, or from
+    ``a = 0`` if ``psi`` is lower there: a warm start ``a0`` from utilities far from this
+    ``M``'s mode (e.g. a previous fit's, under a much larger outputscale) can put ``g = M a0``
+    at ``|g| ~ 1e9``.
 
     Stops when the change of ``g`` is below ``tol * (1 + |g|_inf)``.
     Returns ``(a_hat, g_hat, iterations)``.
@@ -112,6 +115,10 @@ def find_mode(
     a = a0.clone()
     g = M @ a
     psi = _psi(a, g, ordinal)
+    zero = torch.zeros_like(a0)
+    psi_zero = _psi(zero, zero, ordinal)
+    if not bool(torch.isfinite(psi)) or psi > psi_zero:
+        a, g, psi = zero, zero.clone(), psi_zero
     for it in range(1, max_iter + 1):
         step = newton_step(M, g, ordinal)
         da, dg = step.a - a, step.g - g

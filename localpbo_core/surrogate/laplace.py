@@ -80,8 +80,84 @@ def probit_terms_of_differences(
     else:
         active = torch.ones_like(z, dtype=torch.bool)
     log_cdf = torch.special.log_ndtr(z)
-    hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
-    return ProbitTerms(z=z, log_cdf=log_cdf, hazard=hazard, active=active)
+    return ProbitTerms(z=z, log_cdf=log_cdf, hazard=probit_hazard(z, log_cdf), active=active)
+
+
+#: Below this ``z`` :func:`probit_hazard` uses ``erfcx``: in ``exp(-z^2/2 - log Phi(z))`` the
+#: two terms of size ``z^2/2`` cancel and digits are lost (all of them by ``|z| ~ 1e8``).
+HAZARD_TAIL_Z = -20.0
+#: Below this ``z`` :func:`probit_weight` and :func:`probit_weight_slope` use asymptotic
+#: series: in the plain formulas ``h + z ~ -1/z`` cancels (at ``z = -14`` they are still good
+#: to about 1e-11 and 1e-7 relative; their errors grow like ``z^2`` and ``z^6``).
+WEIGHT_TAIL_Z = -14.0
+_LOG_NDTR_TAIL = float(torch.special.log_ndtr(torch.tensor(HAZARD_TAIL_Z, dtype=torch.float64)))
+
+
+def probit_hazard(z: Tensor, log_cdf: Tensor) -> Tensor:
+    """The hazard ``h(z) = phi(z) / Phi(z)`` given ``log_cdf = log Phi(z)``, accurate for every
+    ``z``: ``exp(-z^2/2 - log sqrt(2 pi) - log Phi(z))`` for ``z >= -20`` and
+    ``sqrt(2 / pi) / erfcx(-z / sqrt(2))`` below (``erfcx(x) = exp(x^2) erfc(x)``, so
+    ``Phi(z) = erfcx(-z/sqrt(2)) phi(z) sqrt(pi/2)`` exactly). Each branch only sees its own
+    range of ``z``, so neither can put a NaN into a gradient."""
+    low = z < HAZARD_TAIL_Z
+    if not bool(low.any()):
+        return torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
+    zc = torch.where(low, torch.full_like(z, HAZARD_TAIL_Z), z)
+    lc = torch.where(low, torch.full_like(log_cdf, _LOG_NDTR_TAIL), log_cdf)
+    direct = torch.exp(-0.5 * zc * zc - _LOG_SQRT_2PI - lc)
+    zt = torch.where(low, z, torch.full_like(z, HAZARD_TAIL_Z))
+    tail = math.sqrt(2.0 / math.pi) / torch.special.erfcx(-zt / SQRT2)
+    return torch.where(low, tail, direct)
+
+
+# Asymptotic series in t = 1/z^2 of c (below) and of -z dc/dz as z -> -infinity, from the
+# Mills ratio's (1 - Phi(x)) / phi(x) ~ sum_k (-1)^k (2k-1)!! / x^(2k+1), x = -z (12 terms:
+# relative error below 1e-13 for z < -14).
+_WEIGHT_SERIES = (
+    0.5, -0.5, 3.0, -25.0, 259.0, -3177.0, 44891.0, -717665.0, 12812955.0, -252892561.0,
+    5472355699.0, -128917192425.0,
+)  # fmt: skip
+_SLOPE_SERIES = (
+    0.0, -1.0, 12.0, -150.0, 2072.0, -31770.0, 538692.0, -10047310.0, 205007280.0,
+    -4552066098.0, 109447113980.0, -2836178233350.0,
+)  # fmt: skip
+
+
+def _series(coefficients: tuple[float, ...], t: Tensor) -> Tensor:
+    """``sum_k coefficients[k] t^k`` by Horner's rule."""
+    acc = torch.full_like(t, coefficients[-1])
+    for c in reversed(coefficients[:-1]):
+        acc = acc * t + c
+    return acc
+
+
+def _tail_split(z: Tensor, hazard: Tensor, switch: float) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """The mask ``z < switch``, ``z`` and ``hazard`` moved into the plain range there, and ``z``
+    moved into the tail elsewhere (each branch only sees its own range: no NaN in gradients)."""
+    low = z < switch
+    zc = torch.where(low, torch.full_like(z, switch), z)
+    hc = torch.where(low, torch.ones_like(hazard), hazard)
+    zt = torch.where(low, z, torch.full_like(z, switch))
+    return low, zc, hc, zt
+
+
+def probit_weight(z: Tensor, hazard: Tensor) -> Tensor:
+    """``c = 0.5 h (h + z) = -0.5 d^2 log Phi(z) / dz^2`` (eq. (8), sigma_n = 1) from the
+    hazard ``h``; below ``z = -14`` its asymptotic series ``0.5 - 0.5/z^2 + 3/z^4 - ...``."""
+    if not bool((z < WEIGHT_TAIL_Z).any()):
+        return 0.5 * hazard * (hazard + z)
+    low, zc, hc, zt = _tail_split(z, hazard, WEIGHT_TAIL_Z)
+    return torch.where(low, _series(_WEIGHT_SERIES, 1.0 / (zt * zt)), 0.5 * hc * (hc + zc))
+
+
+def probit_weight_slope(z: Tensor, hazard: Tensor) -> Tensor:
+    """``dc/dz = 0.5 h (1 - (z + h)(z + 2h))`` of :func:`probit_weight` (``dh/dz = -h (z + h)``);
+    below ``z = -14`` its asymptotic series ``1/z^3 - 12/z^5 + 150/z^7 - ...``."""
+    if not bool((z < WEIGHT_TAIL_Z).any()):
+        return 0.5 * hazard * (1.0 - (z + hazard) * (z + 2.0 * hazard))
+    low, zc, hc, zt = _tail_split(z, hazard, WEIGHT_TAIL_Z)
+    direct = 0.5 * hc * (1.0 - (zc + hc) * (zc + 2.0 * hc))
+    return torch.where(low, -_series(_SLOPE_SERIES, 1.0 / (zt * zt)) / zt, direct)
 
 
 def _ordinal_terms(g: Tensor, ordinal: Ordinal) -> ProbitTerms:
@@ -89,9 +165,9 @@ def _ordinal_terms(g: Tensor, ordinal: Ordinal) -> ProbitTerms:
     ``(g - eps) / sqrt(2)`` for decisive duels, the interval likelihood for ties."""
     z = (g - ordinal.threshold) / SQRT2
     log_cdf = torch.special.log_ndtr(z)
-    hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
-    weight = 0.5 * hazard * (hazard + z)
-    slope = 0.5 * hazard * (1.0 - (z + hazard) * (z + 2.0 * hazard))
+    hazard = probit_hazard(z, log_cdf)
+    weight = probit_weight(z, hazard)
+    slope = probit_weight_slope(z, hazard)
     tie = ordinal.tie
     if bool(tie.any()):
         tt = tie_terms(g, ordinal.threshold)
@@ -112,7 +188,7 @@ def hessian_weights(t: ProbitTerms, jacobian: bool = False) -> Tensor:
     ordinal likelihood they are its ``-d^2 log p_n / dg_n^2`` (``t.weight``)."""
     if t.weight is not None:
         return t.weight
-    c = 0.5 * t.hazard * (t.hazard + t.z)
+    c = probit_weight(t.z, t.hazard)
     if jacobian:
         c = torch.where(t.active, c, torch.zeros_like(c))
     return c
@@ -275,8 +351,7 @@ def hessian_weight_slope(t: ProbitTerms) -> Tensor:
     Zero where BoTorch's clamp is active (the clamped ``c`` is constant there)."""
     if t.weight_slope is not None:
         return t.weight_slope
-    h, z = t.hazard, t.z
-    slope = 0.5 * h * (1.0 - (z + h) * (z + 2.0 * h))
+    slope = probit_weight_slope(t.z, t.hazard)
     return torch.where(t.active, slope, torch.zeros_like(slope))
 
 

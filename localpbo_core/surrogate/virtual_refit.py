@@ -41,18 +41,15 @@ derivative in ``g`` and ``-d^2 log p / dg^2``; nothing else changes.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import torch
 from torch import Tensor
 
 from .kernel import kernel_derivatives, se_kernel_exact
-from .laplace import SQRT2, probit_terms_of_differences
+from .laplace import SQRT2, probit_hazard, probit_terms_of_differences, probit_weight
 from .ordinal import Ordinal
 from .protocol import Surrogate
-
-_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 @dataclass
@@ -79,8 +76,7 @@ class VirtualFit:
 def _probit(z: Tensor) -> tuple[Tensor, Tensor]:
     """``log Phi(z)`` and the hazard ``phi(z) / Phi(z)`` (eq. (5) "likelihood", sigma_n = 1)."""
     log_cdf = torch.special.log_ndtr(z)
-    hazard = torch.exp(-0.5 * z * z - _LOG_SQRT_2PI - log_cdf)
-    return log_cdf, hazard
+    return log_cdf, probit_hazard(z, log_cdf)
 
 
 def _row_terms(hf: Tensor, tie: Tensor | None, threshold: float) -> tuple[Tensor, Tensor, Tensor]:
@@ -90,7 +86,7 @@ def _row_terms(hf: Tensor, tie: Tensor | None, threshold: float) -> tuple[Tensor
     if tie is None:
         z = hf / SQRT2
         log_cdf, hazard = _probit(z)
-        return log_cdf, hazard / SQRT2, 0.5 * hazard * (hazard + z)
+        return log_cdf, hazard / SQRT2, probit_weight(z, hazard)
     t = probit_terms_of_differences(hf.reshape(-1), None, Ordinal(tie.reshape(-1), threshold))
     assert t.weight is not None  # an ordinal likelihood always carries its weights
     shape = hf.shape
