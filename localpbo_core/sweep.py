@@ -153,14 +153,7 @@ def select_runs(
                 raise SettingError(
                     flag, f"{v!r} is not in the spec; available: {', '.join(map(str, known[flag]))}"
                 )
-    return [
-        r
-        for r in spec.runs()
-        if (not problems or r.problem_label in problems)
-        and (not algorithms or r.algorithm_label in algorithms)
-        and (not variants or r.variant in variants)
-        and (not seeds or r.seed in seeds)
-    ]
+    return spec.runs(problems, algorithms, variants, seeds)
 
 
 def sweep(

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
+from scipy.stats import norm
 
 from localpbo_core.experiments import load_spec, parse_spec
-from localpbo_core.experiments.spec import SPEC_DIR, validate_runs
+from localpbo_core.experiments.spec import SPEC_DIR, duel_hyperparameters, validate_runs
+from localpbo_core.problems.gp_samples import make_gp_sample
+from localpbo_core.problems.oracle import DuelOracle
 from localpbo_core.settings import SettingError
 
 BUNDLED = sorted(p.stem for p in SPEC_DIR.glob("*.yaml"))
@@ -44,7 +49,7 @@ def test_every_paper_result_has_a_spec() -> None:
 def test_bundled_specs_parse(name: str) -> None:
     spec = parse_spec(yaml.safe_load((SPEC_DIR / f"{name}.yaml").read_text()))
     assert spec.name == name
-    ids = [r.run_id for r in spec.runs()]
+    ids = [r.run_id for r in spec.runs(seeds=spec.seeds[:2])]  # within model: 2 paths each
     assert len(ids) == len(set(ids))
 
 
@@ -86,25 +91,71 @@ def test_policy_warm_start_is_best_of_5d_then_one_random() -> None:
 
 def test_within_model_gives_true_hyperparameters_and_seed_instances() -> None:
     spec = load_spec("gp_within", validate=False)
-    runs = [r for r in spec.runs() if r.problem_label == "gp8_l0.5" and r.seed in (0, 3)]
+    runs = spec.runs(problems=["gp8_l0.5"], seeds=[0, 3])
+    assert {(r.problem_label, r.seed) for r in runs} == {("gp8_l0.5", 0), ("gp8_l0.5", 3)}
     for r in runs:
         assert r.settings.problem_options["instance"] == r.seed
         hp = r.settings.optimizer_options.get("hyperparameters")
         if r.algorithm_label in ("sobol", "glisp"):
             assert hp is None
         else:
-            assert hp == {"lengthscale": 0.5, "outputscale": 1.0}
-    out = load_spec("gp_out_of_model", validate=False).runs()
+            path = make_gp_sample(8, 0.5, r.seed)
+            sigma = 0.1 * path.value_range
+            assert hp == {"lengthscale": 0.5, "outputscale": 1.0 / sigma**2}
+            assert 1.0 < hp["outputscale"] < 3.0
+    out = load_spec("gp_out_of_model", validate=False).runs(seeds=[0])
     assert all("hyperparameters" not in r.settings.optimizer_options for r in out)
 
 
-def test_within_model_keeps_hyperparameters_a_spec_gives() -> None:
-    runs = load_spec("ablation_hbei_within", validate=False).runs()
-    options = {(r.algorithm_label, r.seed): r.settings.optimizer_options for r in runs}
-    assert options[("hbei_true", 0)] == {
-        "hyperparameters": {"lengthscale": 0.1, "outputscale": 1.0}
+def test_within_model_outputscale_is_the_oracles_in_probit_units() -> None:
+    """The oracle's win rate for a pair matches the surrogate likelihood Phi((u+ - u-)/sqrt 2)
+    with the kernel of u given to within-model runs (and not with the path's own s = 1)."""
+    path = make_gp_sample(8, 0.5, 0)
+    hp = duel_hyperparameters(path, 0.1)
+    sigma = 0.1 * path.value_range
+    points = np.random.default_rng(0).random((400, 8))
+    values = path.values(points)
+    gaps = np.abs(values[:, None] - values[None, :])
+    i, j = np.unravel_index(np.argmin(np.abs(gaps - 1.5 * sigma)), gaps.shape)
+    first, second = (i, j) if values[i] > values[j] else (j, i)
+    gap = values[first] - values[second]
+    oracle = DuelOracle(path, 0.1, run_seed=0)
+    n = 4000
+    wins = np.mean([oracle.first_wins(k, values[first], values[second]) for k in range(n)])
+    predicted = norm.cdf(gap * math.sqrt(hp["outputscale"] / 1.0) / math.sqrt(2))
+    unscaled = norm.cdf(gap / math.sqrt(2))  # outputscale s = 1 taken as it is
+    tolerance = 4 * math.sqrt(predicted * (1 - predicted) / n)
+    assert abs(wins - predicted) < tolerance
+    assert abs(wins - unscaled) > tolerance
+
+
+def test_within_model_refuses_noise_free_duels(tmp_path: Path) -> None:
+    doc = {
+        "schema": "localpbo/experiment/v1",
+        "name": "t",
+        "seeds": "0",
+        "settings": {"noise_fraction": 0.0},
+        "within_model": True,
+        "problems": [
+            {"problem": "gp_sample", "label": "g", "options": {"dim": 2, "lengthscale": 0.5}}
+        ],
+        "algorithms": [{"algorithm": "turpbo"}],
     }
-    assert options[("hbei_takeno", 0)] == {"hyperparameters": {"lengthscale": 0.1}}
+    path = tmp_path / "spec.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(SettingError) as info:
+        load_spec(path)
+    assert info.value.field == "within_model" and "noise-free" in info.value.reason
+
+
+def test_within_model_keeps_hyperparameters_a_spec_gives() -> None:
+    runs = load_spec("ablation_hbei_within", validate=False).runs(seeds=[0])
+    options = {(r.algorithm_label, r.problem_label): r.settings.optimizer_options for r in runs}
+    sigma = 0.1 * make_gp_sample(8, 0.1, 0).value_range
+    assert options[("hbei_true", "gp8_l0.1")] == {
+        "hyperparameters": {"lengthscale": 0.1, "outputscale": 1.0 / sigma**2}
+    }
+    assert options[("hbei_takeno", "gp8_l0.1")] == {"hyperparameters": {"lengthscale": 0.1}}
 
 
 def _refusal(change, field: str, tmp_path: Path) -> None:

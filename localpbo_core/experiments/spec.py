@@ -17,7 +17,8 @@ A spec is a YAML file (the bundled ones are ``localpbo_core/experiments/*.yaml``
       budget: null                   # null (initial design + 10 d), an integer, "<k>d(+<c>)"
       noise_fraction: 0.1
     within_model: false              # true: every algorithm that takes the option gets
-                                     # hyperparameters = the problem's true ones (App. D.4)
+                                     # hyperparameters = the problem's true ones (App. D.4),
+                                     # in the duel likelihood's units (see below)
     problems:
       - problem: gp_sample           # registry name
         label: gp8_l0.1              # required when options are given; default: the name
@@ -36,6 +37,16 @@ own GP sample path, the same for every algorithm, so runs stay paired by seed).
 **Matched initial data**: the shared initial design depends only on the run seed and the
 problem dimension (``PreferenceOptimizer``), so every algorithm of a seed starts from the same
 points (App. D.1).
+
+**Within model** (App. D.4): the problem's kernel hyperparameters (``hyperparameters`` of a
+:class:`~localpbo_core.problems.gp_samples.GPSampleProblem`) are those of ``f``, while every
+model-based algorithm models duels with the BoTorch convention of an implicit noise std of 1
+(eq. (5): ``Phi((u(x^+) - u(x^-)) / sqrt(2))``; the paper's settings table: "implicit sigma = 1
+and adjusted output scale"). The oracle answers ``Phi((f(x^+) - f(x^-)) / (sqrt(2) sigma_n))``
+(eqs. (2)-(3), ``sigma_n = noise_fraction * value_range``), so the utility the algorithms model
+is ``u = f / sigma_n`` and its true kernel has the same lengthscale and outputscale
+``s / sigma_n^2`` (:func:`duel_hyperparameters`). A within-model spec with noise-free duels is
+refused (the outputscale would be infinite).
 
 **Validation** happens at load: keys, names, labels (unique, usable in file names), seeds;
 then every (problem, algorithm, variant) is built for the first seed exactly as it will run
@@ -131,14 +142,32 @@ class ExperimentSpec:
     variants: tuple[_Entry, ...]
     path: str = ""
 
-    def runs(self) -> list[PlannedRun]:
-        """Every run in spec order: problem, variant, algorithm, seed (innermost)."""
+    def runs(
+        self,
+        problems: Sequence[str] | None = None,
+        algorithms: Sequence[str] | None = None,
+        variants: Sequence[str] | None = None,
+        seeds: Sequence[int] | None = None,
+    ) -> list[PlannedRun]:
+        """The runs in spec order: problem, variant, algorithm, seed (innermost).
+
+        The filters keep the runs whose labels and seed they list (None: all); only those are
+        resolved, so a slice of a within-model spec builds only its own problems.
+        """
         out = []
         dims: dict[str, int] = {}
         for p in self.problems:
+            if problems and p.label not in problems:
+                continue
             for v in self.variants:
+                if variants and v.label not in variants:
+                    continue
                 for a in self.algorithms:
+                    if algorithms and a.label not in algorithms:
+                        continue
                     for seed in self.seeds:
+                        if seeds and seed not in seeds:
+                            continue
                         settings = _resolve(self, p, a, v, seed, dims)
                         out.append(
                             PlannedRun(
@@ -276,6 +305,38 @@ def parse_spec(doc: object, path: str = "") -> ExperimentSpec:
     )
 
 
+def duel_hyperparameters(
+    problem: object, noise_fraction: float, label: str = ""
+) -> dict[str, float]:
+    """The true hyperparameters of the utility the algorithms model, ``u = f / sigma_n``.
+
+    ``problem.hyperparameters`` is the kernel of ``f`` (lengthscale ``l``, outputscale ``s``);
+    with ``sigma_n = noise_fraction * problem.value_range`` the kernel of ``u`` has lengthscale
+    ``l`` and outputscale ``s / sigma_n^2`` (module docstring, "Within model").
+
+    Raises:
+        SettingError: (field ``within_model``) the problem has no true hyperparameters, or the
+            duels are noise-free (``sigma_n = 0``: no finite outputscale).
+    """
+    from localpbo_core.problems.oracle import noise_std
+
+    name = label or getattr(problem, "name", "?")
+    hp = getattr(problem, "hyperparameters", None)
+    if not isinstance(hp, Mapping):
+        raise SettingError("within_model", f"problem {name!r} has no true hyperparameters to give")
+    sigma = noise_std(problem, noise_fraction)  # type: ignore[arg-type]
+    if not sigma > 0:
+        raise SettingError(
+            "within_model",
+            f"problem {name!r} with noise_fraction {noise_fraction!r}: noise-free duels have no "
+            "finite outputscale in the duel likelihood's units",
+        )
+    return {
+        "lengthscale": float(hp["lengthscale"]),
+        "outputscale": float(hp["outputscale"]) / sigma**2,
+    }
+
+
 def validate_runs(spec: ExperimentSpec) -> None:
     """Build every (problem, algorithm, variant) of the first seed as it will run.
 
@@ -345,12 +406,10 @@ def _resolve(
                 raise _locate(exc, pi, ai, vi, spec) from None
             dims[key] = problem.dim
     if wants_hp and "hyperparameters" not in options:
-        hp = getattr(problem, "hyperparameters", None)
-        if not isinstance(hp, Mapping):
-            raise SettingError(
-                "within_model", f"problem {p.label!r} has no true hyperparameters to give"
-            )
-        options["hyperparameters"] = dict(hp)
+        from localpbo_core.settings import DEFAULT_NOISE_FRACTION
+
+        fraction = merged.get("noise_fraction", DEFAULT_NOISE_FRACTION)
+        options["hyperparameters"] = duel_hyperparameters(problem, fraction, p.label)
     values: dict[str, Any] = {}
     for key in _SETTING_KEYS:
         if key not in merged:

@@ -86,7 +86,7 @@ class GIPBO(LocalPhaseOptimizer):
         virtual_opponent: ``"incumbent"`` (default) or ``"center"`` (see the module docstring;
             the spelling ``"centre"`` is accepted too).
         hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
             :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 

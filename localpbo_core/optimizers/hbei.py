@@ -41,7 +41,7 @@ believed GP is then almost flat; measured mean best value on Hartmann 6 over see
 
 **Fixed hyperparameters** (the paper's within-model runs, App. D.4): the ``hyperparameters``
 option of the other model-based algorithms (:func:`~localpbo_core.optimizers.surrogate_refit.
-check_hyperparameters`), e.g. ``{"lengthscale": 0.1, "outputscale": 1.0}``. A given lengthscale
+check_hyperparameters`), e.g. ``{"lengthscale": 0.1, "outputscale": 2.0}``. A given lengthscale
 is never learned and a given outputscale replaces ``outputscale``; when both are given nothing
 is learned, the kernel never changes, and the chain is never restarted after its first burn-in.
 

@@ -195,7 +195,7 @@ class PrefSQP(LocalPhaseOptimizer):
         num_features: random features of the Thompson sample path.
         eigenvalue_floor: relative floor of the eigenvalue modification.
         hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
             :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 

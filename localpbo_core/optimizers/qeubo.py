@@ -66,7 +66,7 @@ class QEUBO(PreferenceOptimizer):
             iteration only and held in between (the Laplace MAP is still refit on all data
             every iteration). A speed option, not the paper's (same as TuRPBO's).
         hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 1.0}`` (within-model runs, App. D.4); see
+            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
             :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
     """
 

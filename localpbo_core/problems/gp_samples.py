@@ -6,8 +6,9 @@ A problem is one function drawn from a zero-mean GP with squared-exponential ker
 
 on [0,1]^d, maximised. The paper uses d in {8, 16, 32, 64, 96} and l in {0.1, 0.5}; in its
 *within-model* runs the optimizers get the true hyperparameters (``hyperparameters`` below,
-passed to the model-based algorithms as their ``hyperparameters`` option), in the
-*out-of-model* runs they learn them.
+converted to the duel likelihood's units, outputscale ``s / sigma_n^2``, by
+:func:`localpbo_core.experiments.spec.duel_hyperparameters` and passed to the model-based
+algorithms as their ``hyperparameters`` option), in the *out-of-model* runs they learn them.
 
 **How a path is drawn.** Random Fourier features (Rahimi & Recht) with ``F`` features
 (default :data:`DEFAULT_FEATURES` = 4096):
@@ -100,7 +101,8 @@ class GPSampleProblem:
 
     @property
     def hyperparameters(self) -> dict[str, float]:
-        """The true kernel hyperparameters (what within-model runs give the optimizers)."""
+        """The true kernel hyperparameters of ``f`` (within-model runs give the optimizers
+        these in the duel likelihood's units: module docstring)."""
         return {"lengthscale": self.lengthscale, "outputscale": OUTPUTSCALE}
 
     def _value(self, x: np.ndarray) -> float:
