@@ -60,9 +60,12 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from localpbo_core.settings import RunSettings, SettingError
+from localpbo_core.settings import DEFAULT_NOISE_FRACTION, RunSettings, SettingError
+
+if TYPE_CHECKING:
+    from localpbo_core.problems.base import Problem
 
 SCHEMA = "localpbo/experiment/v1"
 SPEC_DIR = Path(__file__).resolve().parent
@@ -154,20 +157,16 @@ class ExperimentSpec:
         The filters keep the runs whose labels and seed they list (None: all); only those are
         resolved, so a slice of a within-model spec builds only its own problems.
         """
+
+        def kept(entries: tuple[_Entry, ...], labels: Sequence[str] | None) -> list[_Entry]:
+            return [e for e in entries if not labels or e.label in labels]
+
         out = []
         dims: dict[str, int] = {}
-        for p in self.problems:
-            if problems and p.label not in problems:
-                continue
-            for v in self.variants:
-                if variants and v.label not in variants:
-                    continue
-                for a in self.algorithms:
-                    if algorithms and a.label not in algorithms:
-                        continue
-                    for seed in self.seeds:
-                        if seeds and seed not in seeds:
-                            continue
+        for p in kept(self.problems, problems):
+            for v in kept(self.variants, variants):
+                for a in kept(self.algorithms, algorithms):
+                    for seed in [s for s in self.seeds if not seeds or s in seeds]:
                         settings = _resolve(self, p, a, v, seed, dims)
                         out.append(
                             PlannedRun(
@@ -306,7 +305,7 @@ def parse_spec(doc: object, path: str = "") -> ExperimentSpec:
 
 
 def duel_hyperparameters(
-    problem: object, noise_fraction: float, label: str = ""
+    problem: Problem, noise_fraction: float, label: str = ""
 ) -> dict[str, float]:
     """The true hyperparameters of the utility the algorithms model, ``u = f / sigma_n``.
 
@@ -320,11 +319,11 @@ def duel_hyperparameters(
     """
     from localpbo_core.problems.oracle import noise_std
 
-    name = label or getattr(problem, "name", "?")
+    name = label or problem.name
     hp = getattr(problem, "hyperparameters", None)
     if not isinstance(hp, Mapping):
         raise SettingError("within_model", f"problem {name!r} has no true hyperparameters to give")
-    sigma = noise_std(problem, noise_fraction)  # type: ignore[arg-type]
+    sigma = noise_std(problem, noise_fraction)
     if not sigma > 0:
         raise SettingError(
             "within_model",
@@ -406,8 +405,7 @@ def _resolve(
                 raise _locate(exc, pi, ai, vi, spec) from None
             dims[key] = problem.dim
     if wants_hp and "hyperparameters" not in options:
-        from localpbo_core.settings import DEFAULT_NOISE_FRACTION
-
+        assert problem is not None  # built above whenever wants_hp
         fraction = merged.get("noise_fraction", DEFAULT_NOISE_FRACTION)
         options["hyperparameters"] = duel_hyperparameters(problem, fraction, p.label)
     values: dict[str, Any] = {}
