@@ -246,6 +246,12 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
     sweep.add_argument("--algorithms", default=None, help="comma-separated algorithm labels")
     sweep.add_argument("--variants", default=None, help="comma-separated variant labels")
     sweep.add_argument("--seeds", default=None, help="seeds or ranges, e.g. 0-4")
+    sweep.add_argument(
+        "--reuse",
+        action="append",
+        metavar="DIR",
+        help="copy runs that the sweep in DIR stored with identical settings (repeatable)",
+    )
     sweep.add_argument("--dry-run", action="store_true", help="list the runs and their state")
     sweep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     report = sub.add_parser(

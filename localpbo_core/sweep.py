@@ -23,6 +23,14 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
+* **Reuse** (``--reuse DIR``, repeatable): a run that another sweep already stored under
+  the same run id with exactly the same settings (``DIR/runs/<run_id>.json.gz``) is copied
+  instead of computed; its ``run`` block is this spec's, with ``reused_from`` naming the
+  source (``<spec>/<run_id>``), and its ``optimizer_seconds`` are those measured for the
+  source. Runs are deterministic in their settings, so the copy is the run this sweep would
+  make (e.g. Sobol and GLISp, which take no GP hyperparameters, run identically within and
+  out of model). Settings that differ in any field, even an option spelled out at its
+  default, are not reused.
 """
 
 from __future__ import annotations
@@ -59,6 +67,7 @@ class SweepResult:
     failed: dict[str, str] = field(default_factory=dict)
     pending: list[str] = field(default_factory=list)
     interrupted: bool = False
+    reused: list[str] = field(default_factory=list)
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -123,6 +132,39 @@ def is_finished(out: Path, plan: PlannedRun) -> bool:
     return True
 
 
+def find_reusable(reuse: Sequence[Path], plan: PlannedRun) -> Path | None:
+    """The first ``DIR/runs/<run_id>.json.gz`` of ``reuse`` that holds ``plan``'s run id with
+    exactly ``plan``'s settings (module docstring, "Reuse"); None if there is none. An
+    unreadable file is passed over."""
+    from localpbo_core.cli import settings_document
+
+    wanted = settings_document(plan.settings)
+    for folder in reuse:
+        path = run_path(folder, plan)
+        if not path.exists():
+            continue
+        try:
+            doc = read_run(path)
+        except (OSError, ValueError, EOFError):
+            continue
+        if doc.get("settings") == wanted:
+            return path
+    return None
+
+
+def reused_document(source: Path, plan: PlannedRun) -> dict[str, Any]:
+    """The stored run at ``source`` as ``plan``'s: its ``run`` block replaced by
+    ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source)."""
+    doc = read_run(source)
+    origin = doc.get("run") or {}
+    doc["run"] = {
+        **plan.describe(),
+        "reused_from": f"{origin.get('spec', source.parent.parent.name)}/"
+        f"{origin.get('run_id', plan.run_id)}",
+    }
+    return doc
+
+
 def select_runs(
     spec: ExperimentSpec,
     problems: Sequence[str] | None = None,
@@ -167,6 +209,7 @@ def sweep(
     progress: bool = True,
     on_stored: Callable[[PlannedRun], None] | None = None,
     stop_on_sigterm: bool = False,
+    reuse: Sequence[Path] = (),
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -179,9 +222,11 @@ def sweep(
         workers: CPUs of the embedded Ray (default: the machine's cores).
         in_process: run sequentially in this process, without Ray.
         progress: show a progress bar with ETA.
-        on_stored: called after each run is stored.
+        on_stored: called after each computed run is stored.
         stop_on_sigterm: SIGTERM interrupts the sweep like Ctrl-C while it runs (called
             from the main thread; ``localpbo sweep`` sets it).
+        reuse: folders of other sweeps whose identical runs are copied, not computed
+            (module docstring, "Reuse"); ``max_runs`` counts computed runs only.
 
     Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
     stops the runs under way and returns with ``interrupted`` set; every run finished before
@@ -192,9 +237,12 @@ def sweep(
     plans = list(spec.runs() if runs is None else runs)
     result = SweepResult()
     todo = []
+    copies: list[tuple[PlannedRun, Path]] = []
     for plan in plans:
         if is_finished(out, plan):
             result.skipped.append(plan.run_id)
+        elif (source := find_reusable(reuse, plan)) is not None:
+            copies.append((plan, source))
         else:
             todo.append(plan)
     if max_runs is not None:
@@ -202,6 +250,9 @@ def sweep(
         todo = todo[:max_runs]
     out.mkdir(parents=True, exist_ok=True)
     (out / "spec.json").write_text(json.dumps(_spec_document(spec), indent=1) + "\n")
+    for plan, source in copies:
+        write_run(run_path(out, plan), reused_document(source, plan))
+        result.reused.append(plan.run_id)
     bar = tqdm(total=len(todo), disable=not progress, unit="run", dynamic_ncols=True)
 
     def store(plan: PlannedRun, doc: dict[str, Any]) -> None:
@@ -314,14 +365,21 @@ def _spec_document(spec: ExperimentSpec) -> dict[str, Any]:
     }
 
 
-def format_dry_run(out: Path, plans: Sequence[PlannedRun], max_runs: int | None) -> str:
-    """One line per run: its id, state (finished / will run / left for later) and budget."""
+def format_dry_run(
+    out: Path, plans: Sequence[PlannedRun], max_runs: int | None, reuse: Sequence[Path] = ()
+) -> str:
+    """One line per run: its id, state (finished / reuse / will run / left for later) and
+    budget."""
     lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
-    counts = {"finished": 0, "will run": 0, "later": 0}
+    counts = {"finished": 0, "reuse": 0, "will run": 0, "later": 0}
+    if not reuse:
+        del counts["reuse"]
     started = 0
     for plan in plans:
         if is_finished(out, plan):
             state = "finished"
+        elif find_reusable(reuse, plan) is not None:
+            state = "reuse"
         elif max_runs is None or started < max_runs:
             state, started = "will run", started + 1
         else:
@@ -349,8 +407,12 @@ def main_sweep(args: Any) -> int:
         spec, labels(args.problems), labels(args.algorithms), labels(args.variants), seeds
     )
     out = Path(args.out)
+    reuse = [Path(folder) for folder in args.reuse or ()]
+    for folder in reuse:
+        if not folder.is_dir():
+            raise SettingError("--reuse", f"{folder} is not a folder")
     if args.dry_run:
-        print(format_dry_run(out, plans, args.max_runs))
+        print(format_dry_run(out, plans, args.max_runs, reuse))
         return 0
     start = time.perf_counter()
     result = sweep(
@@ -363,10 +425,12 @@ def main_sweep(args: Any) -> int:
         in_process=args.in_process,
         progress=not args.no_progress,
         stop_on_sigterm=True,
+        reuse=reuse,
     )
+    reused = f"{len(result.reused)} reused, " if reuse else ""
     print(
-        f"{spec.name}: {len(result.finished)} runs finished, {len(result.skipped)} already "
-        f"stored, {len(result.failed)} failed, {len(result.pending)} left "
+        f"{spec.name}: {len(result.finished)} runs finished, {reused}{len(result.skipped)} "
+        f"already stored, {len(result.failed)} failed, {len(result.pending)} left "
         f"({time.perf_counter() - start:.1f} s); results in {out / 'runs'}"
     )
     for run_id, error in sorted(result.failed.items()):

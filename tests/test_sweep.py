@@ -197,3 +197,52 @@ def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     assert again.returncode == 0, again.stderr
     assert f"{len(finished)} already stored" in again.stdout
     assert len(list(runs.glob("*.json.gz"))) == 6
+
+
+def test_reuse_copies_identical_runs_and_computes_the_rest(
+    spec, reference, tmp_path, monkeypatch, capsys
+) -> None:
+    """A second spec shares the Sobol runs of ``tiny`` exactly and changes TuRPBO's options:
+    ``--reuse`` copies the Sobol runs (never executed) and computes the TuRPBO ones."""
+    import localpbo_core.sweep as sweep_module
+
+    text = Path(spec.path).read_text().replace("name: tiny", "name: tiny_other")
+    text = text.replace("num_restarts: 2", "num_restarts: 3")
+    path = tmp_path / "tiny_other.yaml"
+    path.write_text(text)
+    other = load_spec(str(path))
+    out = tmp_path / "other"
+    cmd = ["sweep", str(path), "--out", str(out), "--reuse", str(reference), "--dry-run"]
+    assert main(cmd) == 0
+    listing = capsys.readouterr().out
+    assert "hartmann6__sobol__seed0" in listing and "2 reuse, 2 will run" in listing
+
+    executed: list[str] = []
+    real = sweep_module.execute_run
+
+    def spy(plan):
+        executed.append(plan.run_id)
+        return real(plan)
+
+    monkeypatch.setattr(sweep_module, "execute_run", spy)
+    result = sweep(other, out, in_process=True, progress=False, reuse=[tmp_path, reference])
+    assert sorted(result.reused) == ["hartmann6__sobol__seed0", "hartmann6__sobol__seed1"]
+    assert sorted(executed) == sorted(result.finished)
+    assert sorted(result.finished) == ["hartmann6__turpbo__seed0", "hartmann6__turpbo__seed1"]
+    for plan in other.runs():
+        doc = read_run(run_path(out, plan))
+        assert doc["run"]["spec"] == "tiny_other"
+        if plan.run_id in result.reused:
+            source = read_run(run_path(reference, plan))
+            assert doc["run"]["reused_from"] == f"tiny/{plan.run_id}"
+            assert {k: v for k, v in doc.items() if k != "run"} == {
+                k: v for k, v in source.items() if k != "run"
+            }
+        else:
+            assert "reused_from" not in doc["run"]
+    again = sweep(other, out, in_process=True, progress=False, reuse=[reference])
+    assert not again.reused and not again.finished and len(again.skipped) == 4
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", str(path), "--out", str(out), "--reuse", str(tmp_path / "none")])
+    assert exc.value.code == 2 and "--reuse: " in capsys.readouterr().err
