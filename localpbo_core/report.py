@@ -53,6 +53,8 @@ class StoredRun:
     best_seen: np.ndarray
     cumulative: np.ndarray
     optimizer_seconds: float
+    reused_from: str = ""
+    """``<spec>/<run_id>`` when ``localpbo sweep --reuse`` copied the run from another sweep."""
 
 
 def holm(pvalues: Sequence[float]) -> list[float]:
@@ -121,6 +123,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
                 best_seen=np.array([r["best_seen"] for r in records], dtype=np.float64),
                 cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
                 optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
+                reused_from=str(meta.get("reused_from", "")),
             )
         )
     if not runs:
@@ -233,7 +236,9 @@ def _paper_configuration(run: StoredRun) -> bool:
 
 
 def compute_table(runs: Sequence[StoredRun]) -> list[str]:
-    """Optimizer seconds per run against the paper's App. E figure."""
+    """Optimizer seconds per run against the paper's App. E figure; runs that ``localpbo
+    sweep --reuse`` copied from another spec are counted in the seconds cell (their seconds
+    are the source's)."""
     lines = [
         "| spec | problem | algorithm | runs | optimizer s/run "
         "| paper s/run (App. E) | paper / ours |",
@@ -259,8 +264,11 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
         )
         ratio = "" if paper is None or secs.mean() <= 0 else f"{paper / secs.mean():.3g}x"
         label = problem + (f" ({variant})" if variant else "")
+        sources = sorted({r.reused_from.split("/")[0] for r in mine if r.reused_from})
+        copied = sum(1 for r in mine if r.reused_from)
+        note = f" ({copied} runs copied from {', '.join(sources)})" if copied else ""
         lines.append(
-            f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)} | "
+            f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)}{note} | "
             f"{'' if paper is None else f'{paper:g}'} | {ratio} |"
         )
     return lines

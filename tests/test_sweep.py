@@ -240,6 +240,13 @@ def test_reuse_copies_identical_runs_and_computes_the_rest(
             }
         else:
             assert "reused_from" not in doc["run"]
+    report = write_report([out], tmp_path / "report").read_text()
+    assert "| tiny_other | hartmann6 | sobol | 2 |" in report
+    assert "(2 runs copied from tiny) |" in report
+    turpbo_row = next(
+        line for line in report.splitlines() if "| tiny_other | hartmann6 | turpbo" in line
+    )
+    assert "copied" not in turpbo_row
     again = sweep(other, out, in_process=True, progress=False, reuse=[reference])
     assert not again.reused and not again.finished and len(again.skipped) == 4
     capsys.readouterr()
