@@ -25,6 +25,17 @@ class TREvent(Enum):
     RESTART = "restart"
 
 
+@dataclass(frozen=True)
+class TRStep:
+    """One iteration of Alg. TurPBO as it happened: the side length ``length`` the batch was
+    proposed in, whether some candidate beat the center (``success``), and what the update
+    then did to the region (``event``)."""
+
+    length: float
+    success: bool
+    event: TREvent
+
+
 @dataclass
 class TrustRegionState:
     """Side length and counters of Alg. TurPBO (App. C.5).

@@ -51,6 +51,7 @@ from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, s
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.optimizers.trust_region import (
     TREvent,
+    TRStep,
     TrustRegionState,
     perturbed_candidates,
     trust_region_bounds,
@@ -135,7 +136,7 @@ class TuRPBO(PreferenceOptimizer):
             check_hyperparameters(hyperparameters, self.dim),
             self.tie_threshold,
         )
-        self.events: list[TREvent] = []
+        self.region_history: list[TRStep] = []
 
     # ------------------------------------------------------------------ state
     @property
@@ -144,6 +145,11 @@ class TuRPBO(PreferenceOptimizer):
         if self._center_id is None:
             return self.incumbent
         return self._candidates[self._center_id]
+
+    @property
+    def events(self) -> list[TREvent]:
+        """What each iteration's update did to the region (:attr:`region_history`'s events)."""
+        return [step.event for step in self.region_history]
 
     @property
     def surrogate(self) -> Surrogate | None:
@@ -246,7 +252,8 @@ class TuRPBO(PreferenceOptimizer):
             if was_king:
                 self._set_incumbent(winners[0])
             self._center_challenged = was_king
+        length = self.tr.length
         event = self.tr.update(success)
-        self.events.append(event)
+        self.region_history.append(TRStep(length, success, event))
         if event is TREvent.RESTART:
             self._restart_pending = True
