@@ -103,9 +103,11 @@ def _share(steps: Sequence[TRStep], keep: float, cmp: str) -> tuple[float, float
 
 def table(runs: Sequence[RegionRun]) -> list[str]:
     """The printed table (module docstring), one row per problem and algorithm label."""
+    pw = max([len("problem"), *(len(r.problem) for r in runs)]) + 2
+    aw = max([len("algorithm"), *(len(r.algorithm) for r in runs)]) + 2
     head = (
-        f"{'problem':<18}{'algorithm':<16}{'seeds':>6}{'best':>10}{'L>=0.8':>8}{'L=0.4':>7}"
-        f"{'L<=0.2':>8}{'won@0.8':>9}{'won@<=0.2':>11}{'shrinks':>9}{'restarts':>10}"
+        f"{'problem':<{pw}}{'algorithm':<{aw}}{'seeds':>6}{'best':>10}{'L>=0.8':>8}"
+        f"{'L=0.4':>7}{'L<=0.2':>8}{'won@0.8':>9}{'won@<=0.2':>11}{'shrinks':>9}{'restarts':>10}"
     )
     lines = [head]
     for problem, algorithm in sorted({(r.problem, r.algorithm) for r in runs}):
@@ -121,7 +123,7 @@ def table(runs: Sequence[RegionRun]) -> list[str]:
         shrinks = [sum(s.event is TREvent.SHRINK for s in r.steps) for r in mine]
         restarts = [sum(s.event is TREvent.RESTART for s in r.steps) for r in mine]
         lines.append(
-            f"{problem:<18}{algorithm:<16}{len(mine):>6}"
+            f"{problem:<{pw}}{algorithm:<{aw}}{len(mine):>6}"
             f"{mean([r.best_seen for r in mine]):>10.4g}"
             f"{mean([w[0] for w in wide]):>8.2f}{mean([m[0] for m in mid]):>7.2f}"
             f"{mean([n[0] for n in narrow]):>8.2f}"
