@@ -60,6 +60,12 @@ def test_counts_match_a_hand_count() -> None:
     # proposed coordinates: (-5, 4.95) both at a bound (within 0.1), (2, 5) one, (-4.89, 0) none
     assert d.at_bound == pytest.approx(3 / 6)
     assert d.newer_won == pytest.approx(2 / 4)
+    # true values newer vs older: 1 > 0, 5 > 1, -2 < 1, 3 > 1
+    assert d.newer_better == pytest.approx(3 / 4)
+    # unit-cube steps |(0.1, 0.1)|, |(-0.6, 0.395)|, |(0.1, 0.4)|, |(-0.589, -0.1)|: the
+    # median is the mean of the middle two
+    middle = (math.hypot(0.1, 0.4) + math.hypot(-0.589, -0.1)) / 2
+    assert d.median_step == pytest.approx(middle)
     assert d.longest_lost_streak == 2
 
 

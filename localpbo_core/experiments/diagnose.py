@@ -15,8 +15,11 @@ problem and algorithm (means over the seeds found):
 * ``at bound``: the share of proposed coordinates within 1 % of the box's edge (a uniform
   point has 2 %).
 * ``won``: the share of duels won by the newer point (the proposal against what it was
-  compared with), and ``lost streak``: the longest run of consecutive such duels lost, the
-  quantity TuRPBO's failure tolerance counts (App. C.5: it halves the trust region after
+  compared with); ``better``: the share of those duels in which the newer point's true value
+  is the higher one (what ``won`` would be without noise); ``step``: the median distance, in
+  the unit cube, between the newer point and the point it was compared with; and
+  ``lost streak``: the longest run of consecutive such duels lost, the quantity TuRPBO's
+  failure tolerance counts (App. C.5: it halves the trust region after
   ``τ_fail = max(4/q, d/q)`` consecutive failures).
 
 It uses only the stored candidates, their true values and the answers: nothing is re-run.
@@ -54,6 +57,8 @@ class RunDiagnosis:
     proposals_mean: float
     at_bound: float
     newer_won: float
+    newer_better: float
+    median_step: float
     longest_lost_streak: int
 
 
@@ -73,24 +78,29 @@ def diagnose_run(doc: dict[str, Any], problem: Any | None = None) -> RunDiagnosi
     hi = np.asarray(problem.to_native(np.ones(dim)), dtype=np.float64)
     value = {int(c["id"]): float(c["value"]) for c in doc["candidates"]}
     native = {int(c["id"]): np.asarray(c["native"], dtype=np.float64) for c in doc["candidates"]}
+    side = np.where(hi > lo, hi - lo, 1.0)
     flips = 0
     gaps = []
     won = []
+    better = []
+    steps = []
     for a in doc["answers"]:
         if a.get("kind", "decisive") != "decisive":  # older files hold decisive duels only
             continue
         first, second, winner = int(a["first"]), int(a["second"]), int(a["winner"])
         loser = second if winner == first else first
+        newer, older = max(first, second), min(first, second)
         flips += value[winner] < value[loser]
         gaps.append(abs(value[first] - value[second]))
-        won.append(winner == max(first, second))
+        won.append(winner == newer)
+        better.append(value[newer] > value[older])
+        steps.append(float(np.linalg.norm((native[newer] - native[older]) / side)))
     streak = longest = 0
     for w in won:
         streak = 0 if w else streak + 1
         longest = max(longest, streak)
     proposed = [i for i in sorted(value) if i >= int(s["initial_design"])]
     x = np.array([native[i] for i in proposed]).reshape(len(proposed), dim)
-    side = np.where(hi > lo, hi - lo, 1.0)
     near = (np.abs(x - lo) <= EDGE * side) | (np.abs(hi - x) <= EDGE * side)
     n = len(won)
     return RunDiagnosis(
@@ -104,6 +114,8 @@ def diagnose_run(doc: dict[str, Any], problem: Any | None = None) -> RunDiagnosi
         proposals_mean=float(np.mean([value[i] for i in proposed])) if proposed else math.nan,
         at_bound=float(near.mean()) if near.size else math.nan,
         newer_won=float(np.mean(won)) if won else math.nan,
+        newer_better=float(np.mean(better)) if better else math.nan,
+        median_step=float(np.median(steps)) if steps else math.nan,
         longest_lost_streak=longest,
     )
 
@@ -172,7 +184,8 @@ def table(diagnoses: Sequence[RunDiagnosis], random_means: dict[str, float]) -> 
     width = max([len("algorithm"), *(len(d.algorithm) for d in diagnoses)]) + 1
     header = (
         f"{'problem':<18}{'algorithm':<{width}}{'seeds':>6}{'flipped':>9}{'|Δ|/σ':>8}"
-        f"{'proposals':>12}{'random':>12}{'at bound':>10}{'won':>7}{'lost streak':>13}"
+        f"{'proposals':>12}{'random':>12}{'at bound':>10}{'won':>7}{'better':>8}{'step':>8}"
+        f"{'lost streak':>13}"
     )
     lines = [header]
     groups: dict[tuple[str, str], list[RunDiagnosis]] = {}
@@ -188,6 +201,8 @@ def table(diagnoses: Sequence[RunDiagnosis], random_means: dict[str, float]) -> 
             f"{random_means.get(problem, math.nan):>12.4g}"
             f"{np.mean([d.at_bound for d in ds]):>10.3f}"
             f"{np.mean([d.newer_won for d in ds]):>7.2f}"
+            f"{np.mean([d.newer_better for d in ds]):>8.2f}"
+            f"{np.mean([d.median_step for d in ds]):>8.3f}"
             f"{f'{min(streaks)}-{max(streaks)}':>13}"
         )
     return lines
