@@ -16,8 +16,16 @@ restart). The utility is observed only through duels, so the incumbent's posteri
 stands in for the unobserved "best value". EI is maximised in the trust-region box with the
 raw-sample + multi-start L-BFGS-B scheme of the Thompson route (gradients by autograd).
 EI has no batch form here: ``acquisition="ei"`` with ``batch_size > 1`` is refused
-(``SettingError`` on ``batch_size``). Success iff some candidate wins (App. C.5); the
-counters and L follow :class:`~localpbo_core.optimizers.trust_region.TrustRegionState`.
+(``SettingError`` on ``batch_size``). It is kept for the App. D.7 ablation, not recommended:
+duels inform differences only, so ``s`` keeps its prior value in the direction of the
+utility's level, also at the incumbent, where EI is then ``s phi(0)``; unless some point's mean
+exceeds ``m*`` by enough, the maximiser is the incumbent itself and TuRPBO duels near-copies
+(measured on 32-D GP paths, see ``docs/results/notes.md``). EI of the difference ``f(x) -
+f(x_inc)`` under the joint posterior avoids this, but equals EUBO against the incumbent minus
+``E[f(x_inc)]``: the ``"qeubo"`` acquisition with q = 1.
+
+Success iff some candidate wins (App. C.5); the counters and L follow
+:class:`~localpbo_core.optimizers.trust_region.TrustRegionState`.
 
 Decisions not fixed by the paper (documented here, in the README and the report):
 
