@@ -250,7 +250,8 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         "--reuse",
         action="append",
         metavar="DIR",
-        help="copy runs that the sweep in DIR stored with identical settings (repeatable)",
+        help="copy runs that the sweep in DIR stored with the same settings, options at "
+        "their defaults included (repeatable)",
     )
     sweep.add_argument("--dry-run", action="store_true", help="list the runs and their state")
     sweep.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -23,14 +23,15 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
-* **Reuse** (``--reuse DIR``, repeatable): a run that another sweep already stored under
-  the same run id with exactly the same settings (``DIR/runs/<run_id>.json.gz``) is copied
-  instead of computed; its ``run`` block is this spec's, with ``reused_from`` naming the
-  source (``<spec>/<run_id>``), and its ``optimizer_seconds`` are those measured for the
-  source. Runs are deterministic in their settings, so the copy is the run this sweep would
-  make (e.g. Sobol and GLISp, which take no GP hyperparameters, run identically within and
-  out of model). Settings that differ in any field, even an option spelled out at its
-  default, are not reused.
+* **Reuse** (``--reuse DIR``, repeatable): a run that another sweep already stored in
+  ``DIR/runs/`` with the same settings is copied instead of computed; its ``run`` block is
+  this spec's, with ``reused_from`` naming the source (``<spec>/<run_id>``), and its
+  ``optimizer_seconds`` are those measured for the source. Runs are deterministic in their
+  settings, so the copy is the run this sweep would make (e.g. Sobol and GLISp, which take
+  no GP hyperparameters, run identically within and out of model). Settings are compared
+  with the optimizer options completed by the algorithm's defaults, so an ablation's
+  ``qeubo_q1`` (``batch_size: 1`` spelled out) reuses plain ``qeubo`` runs; labels and run
+  ids may differ. Settings that differ in any other way are not reused.
 """
 
 from __future__ import annotations
@@ -132,30 +133,100 @@ def is_finished(out: Path, plan: PlannedRun) -> bool:
     return True
 
 
-def find_reusable(reuse: Sequence[Path], plan: PlannedRun) -> Path | None:
-    """The first ``DIR/runs/<run_id>.json.gz`` of ``reuse`` that holds ``plan``'s run id with
-    exactly ``plan``'s settings (module docstring, "Reuse"); None if there is none. An
-    unreadable file is passed over."""
-    from localpbo_core.cli import settings_document
+def effective_settings(settings: dict[str, Any]) -> dict[str, Any] | None:
+    """A stored ``settings`` block with its optimizer options completed by the algorithm's
+    defaults (:func:`~localpbo_core.optimizers.optimizer_defaults`), in JSON types, so that
+    an option spelled out at its default and one left out compare equal. None if the
+    algorithm is not registered."""
+    from localpbo_core.optimizers import optimizer_defaults
 
-    wanted = settings_document(plan.settings)
-    for folder in reuse:
-        path = run_path(folder, plan)
-        if not path.exists():
-            continue
-        try:
-            doc = read_run(path)
-        except (OSError, ValueError, EOFError):
-            continue
-        if doc.get("settings") == wanted:
-            return path
-    return None
+    try:
+        defaults = optimizer_defaults(str(settings.get("algorithm")))
+    except SettingError:
+        return None
+    skip = set(settings)  # e.g. initial_design: a field of the settings, not an option
+    options = {k: v for k, v in defaults.items() if k not in skip}
+    options.update(settings.get("optimizer_options") or {})
+    return {
+        **settings,
+        "optimizer_options": json.loads(json.dumps(options, default=str)),
+    }
+
+
+_FolderIndex = dict[tuple[str, ...], list[tuple[dict[str, Any], Path]]]
+"""Stored runs of one folder by (algorithm, problem, seed): effective settings and file."""
+
+
+def _run_key(settings: dict[str, Any]) -> tuple[str, ...]:
+    return tuple(str(settings.get(k)) for k in ("algorithm", "problem", "seed"))
+
+
+class ReuseIndex:
+    """The runs stored by other sweeps (``--reuse DIR``, module docstring "Reuse"), found by
+    their effective settings (:func:`effective_settings`) whatever their run id.
+
+    A folder's files are read once, on the first run not found under its own run id; an
+    unreadable file is passed over."""
+
+    def __init__(self, folders: Sequence[Path]) -> None:
+        self.folders = list(folders)
+        self._index: dict[Path, _FolderIndex] = {}
+
+    def __bool__(self) -> bool:
+        return bool(self.folders)
+
+    def _folder_index(self, folder: Path) -> _FolderIndex:
+        if folder not in self._index:
+            index: _FolderIndex = {}
+            for path in sorted((folder / "runs").glob(f"*{RUN_SUFFIX}")):
+                try:
+                    settings = read_run(path).get("settings")
+                except (OSError, ValueError, EOFError):
+                    continue
+                if not isinstance(settings, dict):
+                    continue
+                effective = effective_settings(settings)
+                if effective is None:
+                    continue
+                key = _run_key(settings)
+                index.setdefault(key, []).append((effective, path))
+            self._index[folder] = index
+        return self._index[folder]
+
+    def find(self, plan: PlannedRun) -> Path | None:
+        """The first stored run (folders in order; within a folder ``plan``'s own run id
+        first, then the others by name) whose effective settings are ``plan``'s; None if
+        there is none."""
+        from localpbo_core.cli import settings_document
+
+        wanted_doc = settings_document(plan.settings)
+        wanted = effective_settings(wanted_doc)
+        if wanted is None:
+            return None
+        key = _run_key(wanted_doc)
+        for folder in self.folders:
+            path = run_path(folder, plan)
+            if path.exists():
+                try:
+                    settings = read_run(path).get("settings")
+                except (OSError, ValueError, EOFError):
+                    settings = None
+                if isinstance(settings, dict) and effective_settings(settings) == wanted:
+                    return path
+            for effective, path in self._folder_index(folder).get(key, []):
+                if effective == wanted:
+                    return path
+        return None
 
 
 def reused_document(source: Path, plan: PlannedRun) -> dict[str, Any]:
-    """The stored run at ``source`` as ``plan``'s: its ``run`` block replaced by
-    ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source)."""
+    """The stored run at ``source`` as ``plan``'s: its ``settings`` as ``plan`` spells them
+    (the same effective settings, :func:`effective_settings`) and its ``run`` block replaced
+    by ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source)."""
+    from localpbo_core.cli import settings_document
+
     doc = read_run(source)
+    doc["settings"] = settings_document(plan.settings)
     origin = doc.get("run") or {}
     doc["run"] = {
         **plan.describe(),
@@ -238,10 +309,11 @@ def sweep(
     result = SweepResult()
     todo = []
     copies: list[tuple[PlannedRun, Path]] = []
+    index = ReuseIndex(reuse)
     for plan in plans:
         if is_finished(out, plan):
             result.skipped.append(plan.run_id)
-        elif (source := find_reusable(reuse, plan)) is not None:
+        elif index and (source := index.find(plan)) is not None:
             copies.append((plan, source))
         else:
             todo.append(plan)
@@ -375,10 +447,11 @@ def format_dry_run(
     if not reuse:
         del counts["reuse"]
     started = 0
+    index = ReuseIndex(reuse)
     for plan in plans:
         if is_finished(out, plan):
             state = "finished"
-        elif find_reusable(reuse, plan) is not None:
+        elif index and index.find(plan) is not None:
             state = "reuse"
         elif max_runs is None or started < max_runs:
             state, started = "will run", started + 1

@@ -11,11 +11,20 @@ from pathlib import Path
 
 import pytest
 
-from localpbo_core.cli import main
+from localpbo_core.cli import main, settings_document
 from localpbo_core.experiments import load_spec
 from localpbo_core.report import write_report
 from localpbo_core.settings import SettingError
-from localpbo_core.sweep import LOOPBACK_ONLY_ENV, read_run, run_path, select_runs, start_ray, sweep
+from localpbo_core.sweep import (
+    LOOPBACK_ONLY_ENV,
+    effective_settings,
+    format_dry_run,
+    read_run,
+    run_path,
+    select_runs,
+    start_ray,
+    sweep,
+)
 
 os.environ.setdefault(LOOPBACK_ONLY_ENV, "0")  # before Ray is imported, as the sweep does
 ray = pytest.importorskip("ray")
@@ -253,3 +262,68 @@ def test_reuse_copies_identical_runs_and_computes_the_rest(
     with pytest.raises(SystemExit) as exc:
         main(["sweep", str(path), "--out", str(out), "--reuse", str(tmp_path / "none")])
     assert exc.value.code == 2 and "--reuse: " in capsys.readouterr().err
+
+
+def test_reuse_matches_runs_by_settings_with_options_at_their_defaults(
+    spec, reference, tmp_path, monkeypatch
+) -> None:
+    """Another spec spells out defaults under new labels (``sobol_q1``: ``batch_size: 1``;
+    ``turpbo_ts``: ``acquisition: ts``) and changes one option off its default
+    (``turpbo_r3``): the first two reuse ``tiny``'s runs under other run ids, the third is
+    computed. The copies carry the new spec's settings, so the next sweep finds them
+    finished."""
+    import localpbo_core.sweep as sweep_module
+
+    turpbo = "num_raw_samples: 64, num_restarts: 2, num_features: 256"
+    text = f"""schema: localpbo/experiment/v1
+name: tiny_defaults
+paper: none (test)
+seeds: 0-1
+settings: {{initial_design: 2, budget: 8, noise_fraction: 0.1}}
+problems:
+  - problem: hartmann6
+algorithms:
+  - {{algorithm: sobol, label: sobol_q1, options: {{batch_size: 1}}}}
+  - {{algorithm: turpbo, label: turpbo_ts, options: {{{turpbo}, acquisition: ts}}}}
+  - {{algorithm: turpbo, label: turpbo_r3, options: {{{turpbo.replace("2,", "3,")}}}}}
+"""
+    path = tmp_path / "tiny_defaults.yaml"
+    path.write_text(text)
+    other = load_spec(str(path))
+    out = tmp_path / "defaults"
+    assert "4 reuse, 2 will run" in format_dry_run(out, other.runs(), None, [reference])
+
+    executed: list[str] = []
+    real = sweep_module.execute_run
+    monkeypatch.setattr(
+        sweep_module, "execute_run", lambda plan: executed.append(plan.run_id) or real(plan)
+    )
+    result = sweep(other, out, in_process=True, progress=False, reuse=[reference])
+    assert sorted(executed) == sorted(result.finished)
+    assert sorted(result.finished) == ["hartmann6__turpbo_r3__seed0", "hartmann6__turpbo_r3__seed1"]
+    assert len(result.reused) == 4
+    for plan in other.runs():
+        doc = read_run(run_path(out, plan))
+        assert doc["settings"] == settings_document(plan.settings)
+        if plan.run_id not in result.reused:
+            continue
+        source_id = plan.run_id.replace("_q1", "").replace("_ts", "")
+        source = read_run(reference / "runs" / f"{source_id}.json.gz")
+        assert doc["run"]["reused_from"] == f"tiny/{source_id}"
+        assert source["settings"] != doc["settings"]
+        assert {k: v for k, v in doc.items() if k not in ("run", "settings")} == {
+            k: v for k, v in source.items() if k not in ("run", "settings")
+        }
+    again = sweep(other, out, in_process=True, progress=False, reuse=[reference])
+    assert not again.reused and not again.finished and len(again.skipped) == 6
+
+
+def test_effective_settings_fill_in_defaults_and_keep_explicit_values() -> None:
+    base = {"algorithm": "qeubo", "problem": "levy32", "seed": 3, "initial_design": 2}
+    plain = effective_settings({**base, "optimizer_options": {}})
+    spelled = effective_settings({**base, "optimizer_options": {"batch_size": 1}})
+    other = effective_settings({**base, "optimizer_options": {"batch_size": 2}})
+    assert plain is not None and plain == spelled != other
+    assert plain["optimizer_options"]["num_raw_samples"] == 1024
+    assert "initial_design" not in plain["optimizer_options"]  # a settings field
+    assert effective_settings({**base, "algorithm": "nope", "optimizer_options": {}}) is None

@@ -17,6 +17,7 @@ from localpbo_core.optimizers.preference_optimizer import (
 from localpbo_core.optimizers.registry import (
     available_optimizers,
     make_optimizer,
+    optimizer_defaults,
     optimizer_options,
     register_optimizer,
 )
@@ -51,6 +52,7 @@ __all__ = [
     "TuRPBO",
     "available_optimizers",
     "make_optimizer",
+    "optimizer_defaults",
     "optimizer_options",
     "register_optimizer",
 ]

@@ -51,6 +51,17 @@ def optimizer_options(name: str) -> list[str]:
     return [p for p in params if p not in _RUN_ARGUMENTS]
 
 
+def optimizer_defaults(name: str) -> dict[str, object]:
+    """Default value of each keyword option of algorithm ``name`` that has one (besides dim,
+    seed, budget): the options a run gets when it does not name them."""
+    params = inspect.signature(_lookup(name)).parameters
+    return {
+        key: p.default
+        for key, p in params.items()
+        if key not in _RUN_ARGUMENTS and p.default is not inspect.Parameter.empty
+    }
+
+
 def _lookup(name: str) -> Factory:
     key = str(name).lower()
     if key not in _REGISTRY:
