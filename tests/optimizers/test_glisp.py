@@ -90,6 +90,44 @@ def test_rejected_tell_mid_run_changes_nothing():
     np.testing.assert_array_equal(opt.train_inputs(), clean)
 
 
+def test_expected_max_evals_places_the_recalibrations():
+    # glis's default E = 100: recalibrations at n + k (E - n) / 4, all in the first 100
+    default = GLISpOptimizer(dim=2, seed=0, budget=400)
+    np.testing.assert_array_equal(default.glis.RBFcalibrationSteps, [10, 32, 55, 78])
+    assert default.glis.sepvalue == pytest.approx(1 / 100)
+    # None: E is the run's budget (glis's solve()), recalibrations spread over the run
+    spread = GLISpOptimizer(dim=2, seed=0, budget=400, expected_max_evals=None)
+    np.testing.assert_array_equal(spread.glis.RBFcalibrationSteps, [10, 108, 205, 302])
+    assert spread.glis.sepvalue == pytest.approx(1 / 400)
+    # a design larger than E: only the recalibration at the end of the design is left
+    warm = GLISpOptimizer(dim=2, seed=0, budget=400, initial_design=166)
+    np.testing.assert_array_equal(warm.glis.RBFcalibrationSteps, [166])
+
+
+def test_recalibrations_count_the_linear_programs():
+    # A recalibration at N samples solves 10 (N - 1) LPs (leave each non-best sample out, for
+    # 10 shape factors); an ordinary step one: counted through glis's own fit.
+    counts = {}
+    for label, e in (("default", 100), ("budget", None)):
+        opt = GLISpOptimizer(dim=2, seed=3, budget=40, expected_max_evals=e)
+        glis = opt.glis
+        fit = glis.get_rbf_weights
+        calls = [0]
+
+        def counted(*args, _fit=fit, _calls=calls):
+            _calls[0] += 1
+            return _fit(*args)
+
+        glis.get_rbf_weights = counted
+        drive(opt)
+        counts[label] = calls[0]
+    steps = 40 - 10  # steps after the 10 random points that fit and solve an acquisition
+    # E = 40 (budget): recalibrations at 10, 18, 25, 32 samples; E = 100: at 10 and 32 of
+    # 10, 32, 55, 78 fall within 40 evaluations
+    assert counts["budget"] == steps + sum(10 * (n - 1) for n in (10, 18, 25, 32))
+    assert counts["default"] == steps + sum(10 * (n - 1) for n in (10, 32))
+
+
 @pytest.mark.parametrize(
     ("options", "field"),
     [
@@ -98,6 +136,8 @@ def test_rejected_tell_mid_run_changes_nothing():
         ({"pso_swarm_size": 2.5}, "pso_swarm_size"),
         ({"delta": -1.0}, "delta"),
         ({"batch_size": 2}, "batch_size"),
+        ({"expected_max_evals": 0}, "expected_max_evals"),
+        ({"expected_max_evals": 50.5}, "expected_max_evals"),
     ],
 )
 def test_bad_options_raise(options, field):
