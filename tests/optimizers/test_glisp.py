@@ -3,6 +3,8 @@ improvement on a smooth problem, bad options."""
 
 from __future__ import annotations
 
+from unittest import mock
+
 import numpy as np
 import pytest
 from optim_helpers import drive, utility
@@ -110,17 +112,10 @@ def test_recalibrations_count_the_linear_programs():
     counts = {}
     for label, e in (("default", 100), ("budget", None)):
         opt = GLISpOptimizer(dim=2, seed=3, budget=40, expected_max_evals=e)
-        glis = opt.glis
-        fit = glis.get_rbf_weights
-        calls = [0]
-
-        def counted(*args, _fit=fit, _calls=calls):
-            _calls[0] += 1
-            return _fit(*args)
-
-        glis.get_rbf_weights = counted
-        drive(opt)
-        counts[label] = calls[0]
+        fit = opt.glis.get_rbf_weights
+        with mock.patch.object(opt.glis, "get_rbf_weights", wraps=fit) as counted:
+            drive(opt)
+        counts[label] = counted.call_count
     steps = 40 - 10  # steps after the 10 random points that fit and solve an acquisition
     # E = 40 (budget): recalibrations at 10, 18, 25, 32 samples; E = 100: at 10 and 32 of
     # 10, 32, 55, 78 fall within 40 evaluations
