@@ -7,7 +7,6 @@ it never publishes a result, so only a take-over by another worker can answer wh
 
 from __future__ import annotations
 
-import sys
 import time
 from typing import Any
 
@@ -31,4 +30,4 @@ class HangingSimNode(SimNode):
 
 
 if __name__ == "__main__":
-    sys.exit(run_node(HangingSimNode, None, stop_when_finished=False))
+    run_node(HangingSimNode, None, stop_when_finished=False)

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
+from collections.abc import Sequence
 
 
 def wait_ready(proc: subprocess.Popen[str]) -> list[str]:
@@ -36,6 +39,7 @@ def host_env(domain_id: int) -> dict[str, str]:
         )
     }
     env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["PYTHONFAULTHANDLER"] = "1"  # SIGABRT prints every thread's stack (see stop_nodes)
     return env
 
 
@@ -51,3 +55,35 @@ def start_node(env: dict[str, str], node: str, *ros_args: str) -> subprocess.Pop
     return subprocess.Popen(
         cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
     )
+
+
+def stop_nodes(procs: Sequence[subprocess.Popen[str]], timeout_s: float = 30.0) -> list[int]:
+    """Send SIGINT to every process and wait for all of them; return their exit codes.
+
+    Each one's stderr is read while waiting, so a chatty node cannot block on a full pipe.
+    A process still running after ``timeout_s`` gets SIGABRT (with ``PYTHONFAULTHANDLER``, as
+    ``host_env`` sets it, Python prints where every thread was) and the test fails with what
+    that process wrote.
+    """
+    for proc in procs:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + timeout_s
+    codes = []
+    for proc in procs:
+        try:
+            _, err = proc.communicate(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            _, err = proc.communicate(timeout=30)
+            for other in procs:
+                if other.poll() is None:
+                    other.kill()
+                    other.wait()
+            raise AssertionError(
+                f"{proc.args} still running {timeout_s} s after SIGINT; stderr:\n{err}"
+            ) from None
+        if proc.returncode != 0:
+            raise AssertionError(f"{proc.args} exited with {proc.returncode}; stderr:\n{err}")
+        codes.append(proc.returncode)
+    return codes

@@ -3,7 +3,6 @@ executables' defaults (LOCALHOST discovery range + the loopback/SHM Fast DDS pro
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import time
@@ -16,7 +15,7 @@ from localpbo_msgs_py import Status
 from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.topics import STATUS
 
-from .processes import host_env, start_node
+from .processes import host_env, start_node, stop_nodes
 
 
 def tx_packets() -> int:
@@ -78,10 +77,8 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
         )
         assert opt.returncode == 0, opt.stderr
     finally:
-        for proc in helpers:
-            proc.send_signal(signal.SIGINT)
-        codes = [proc.wait(30) for proc in helpers]
-    assert codes == [0, 0, 0], [p.stderr.read() for p in helpers]
+        codes = stop_nodes(helpers)
+    assert codes == [0, 0, 0]
     assert summarize(bag).complete
     run = load_run(bag)
     assert run.config.run_id == "mp" and len(run.candidates) == 8

@@ -53,3 +53,40 @@ def test_second_signal_still_stops_cleanly(
     assert "Traceback" not in out, out
     if module == "recorder_node":
         assert summarize(bag).complete
+
+
+def _start(cmd: list[str], tmp_path: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF", "ROS_DOMAIN_ID": "62"}
+    cmd = [*cmd, "--ros-args", "-p", f"path:={tmp_path / 'stop.mcap'}"]
+    return subprocess.Popen(
+        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+
+
+def test_output_logged_while_stopping_is_not_lost(tmp_path: Path) -> None:
+    proc = _start([sys.executable, "-m", "localpbo_ros.recorder_node"], tmp_path)
+    lines = wait_ready(proc)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out
+    assert "recorder_node stopping on signal" in "".join(lines) + out
+
+
+def test_clean_up_that_hangs_is_reported_and_ended(tmp_path: Path) -> None:
+    script = str(Path(__file__).with_name("hanging_close.py"))
+    proc = _start([sys.executable, script], tmp_path)
+    try:
+        wait_ready(proc)
+        proc.send_signal(signal.SIGINT)
+        start = time.monotonic()
+        out, _ = proc.communicate(timeout=30)
+        took = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    # STOP_GRACE_S is 2 s in the script: the watchdog ends the process, code 1, and the stack
+    # it prints shows where the clean-up hung
+    assert proc.returncode == 1, out
+    assert 1.5 < took < 20.0
+    assert "Timeout" in out and "in close" in out, out

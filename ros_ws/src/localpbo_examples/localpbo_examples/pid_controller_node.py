@@ -17,8 +17,7 @@ controller are :mod:`localpbo_examples.plant`.
 
 from __future__ import annotations
 
-import sys
-from typing import Any
+from typing import Any, NoReturn
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.context import Context
@@ -130,12 +129,12 @@ class PidControllerNode(Node):
                 return
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_examples pid_controller_node [--ros-args -p kp:=2.0 ...]``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(PidControllerNode, argv, stop_when_finished=False)
+    run_node(PidControllerNode, argv, stop_when_finished=False)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

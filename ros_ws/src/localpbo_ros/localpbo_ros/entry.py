@@ -6,19 +6,28 @@ the process has exited, so a second Ctrl-C, or ``timeout``/a process-group kill 
 twice, cannot cut the clean-up short with a traceback or a death by signal. rclpy's own signal
 handlers are not installed for that reason (they shut the context down at the first signal and
 leave the second to Python's default handler). Once the node is closed the signals are set to
-be ignored: Python's finalization (a few hundred ms with the DDS threads to end) resets every
-Python-level handler to the default, under which a late signal would kill the process.
+be ignored.
+
+Exiting is bounded. Once the spin loop has ended, the clean-up (closing the node, destroying it,
+shutting the DDS participant down) has ``STOP_GRACE_S`` seconds; should it hang, ``faulthandler``
+prints every thread's stack to stderr and the process exits with code 1 instead of waiting
+forever. After the clean-up the process leaves with ``os._exit``: everything it holds is closed
+by then, and skipping the interpreter's finalization skips the DDS library's static destructors,
+which are known to hang now and then at exit.
 """
 
 from __future__ import annotations
 
+import ctypes
+import faulthandler
+import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
 from types import FrameType
-from typing import Any
+from typing import Any, NoReturn
 
 from localpbo_ros.dds import host_scope
 from localpbo_ros.params import ParameterError
@@ -27,6 +36,10 @@ LINGER_S = 1.0
 """Seconds a finished optimizer keeps spinning so the last messages reach their readers."""
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+STOP_GRACE_S = 20.0
+"""Seconds the clean-up after the spin loop may take before the process reports where it hangs
+(every thread's stack on stderr) and exits with code 1."""
 
 
 def stop_on_signals() -> threading.Event:
@@ -44,17 +57,27 @@ def stop_on_signals() -> threading.Event:
 
 def run_node(
     factory: Callable[..., Any], argv: list[str] | None, *, stop_when_finished: bool
-) -> int:
-    """Create one node from ``factory`` and spin it until SIGINT (or until it finishes).
+) -> NoReturn:
+    """Create one node from ``factory``, spin it until SIGINT (or until it finishes), and exit
+    the process.
 
-    Returns the exit code: 0 after a clean stop, 1 when the node's run failed, 2 when a
-    parameter was refused (the message names it).
+    Exit codes: 0 after a clean stop, 1 when the node's run failed or its clean-up hung past
+    ``STOP_GRACE_S``, 2 when a parameter was refused (the message names it).
     """
     host_scope()
     code = _run(factory, argv, stop_when_finished, stop_on_signals())
     for sig in STOP_SIGNALS:  # the process only exits from here on
         signal.signal(sig, signal.SIG_IGN)
-    return code
+    exit_now(code)
+
+
+def exit_now(code: int) -> NoReturn:
+    """Flush Python's and C's output buffers and end the process with ``code`` at once,
+    without the interpreter's finalization (see the module docstring)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    ctypes.CDLL(None).fflush(None)  # rcutils may log to a buffered C stdout
+    os._exit(code)
 
 
 def _run(
@@ -102,6 +125,7 @@ def _run(
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     finally:
+        faulthandler.dump_traceback_later(STOP_GRACE_S, exit=True)
         if node is not None:
             if hasattr(node, "close"):
                 node.close()

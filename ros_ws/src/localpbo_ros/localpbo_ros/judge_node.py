@@ -23,9 +23,8 @@ from __future__ import annotations
 import ipaddress
 import os
 import secrets
-import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from rclpy.context import Context
 
@@ -270,12 +269,12 @@ class JudgeNode(FollowerNode):
         self.core.on_status(status)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros judge_node [--ros-args -p port:=8765]``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(JudgeNode, argv, stop_when_finished=False)
+    run_node(JudgeNode, argv, stop_when_finished=False)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

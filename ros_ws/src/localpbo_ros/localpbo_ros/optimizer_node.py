@@ -38,10 +38,9 @@ holds the start until that many workers are heard. Counters: ``assigned``, ``rea
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from rclpy.context import Context
 
@@ -598,12 +597,12 @@ class OptimizerNode(SuiteNode):
         self.get_logger().info(self.summary().format())
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros optimizer_node --ros-args -p key:=value ...``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(OptimizerNode, argv, stop_when_finished=True)
+    run_node(OptimizerNode, argv, stop_when_finished=True)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

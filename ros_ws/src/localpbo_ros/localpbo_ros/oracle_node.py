@@ -18,8 +18,7 @@ fails the duels waiting on it (and is then forgotten, so a retry waits for the f
 
 from __future__ import annotations
 
-import sys
-from typing import Any
+from typing import Any, NoReturn
 
 from rclpy.context import Context
 
@@ -176,12 +175,12 @@ class OracleNode(FollowerNode):
             self._results.pop(cid, None)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros oracle_node [--ros-args -p run_id:=...]``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(OracleNode, argv, stop_when_finished=False)
+    run_node(OracleNode, argv, stop_when_finished=False)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -32,10 +32,9 @@ bridges, each on its own controller instance, share a run.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections import deque
-from typing import Any
+from typing import Any, NoReturn
 
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType
@@ -482,12 +481,12 @@ class ParamBridgeNode(FollowerNode):
         return response
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros param_bridge_node --ros-args -p target_node:=/my_controller``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(ParamBridgeNode, argv, stop_when_finished=True)
+    run_node(ParamBridgeNode, argv, stop_when_finished=True)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

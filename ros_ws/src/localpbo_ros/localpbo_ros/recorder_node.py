@@ -17,10 +17,9 @@ as ``dropped_bag_full``, and the bag is still closed as complete at the end. Bot
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -161,12 +160,12 @@ class RecorderNode(SuiteNode):
         self.writer.close()
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros recorder_node --ros-args -p path:=run.mcap``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(RecorderNode, argv, stop_when_finished=False)
+    run_node(RecorderNode, argv, stop_when_finished=False)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -23,9 +23,8 @@ state ``stopped`` on its way out, and its candidate goes to another worker at on
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from rclpy.context import Context
@@ -131,12 +130,12 @@ class SimNode(FollowerNode):
         self._pub.publish(result.encode())
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None) -> NoReturn:
     """``ros2 run localpbo_ros sim_node [--ros-args -p run_id:=...]``."""
     from localpbo_ros.entry import run_node
 
-    return run_node(SimNode, argv, stop_when_finished=False)
+    run_node(SimNode, argv, stop_when_finished=False)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
