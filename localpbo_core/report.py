@@ -220,12 +220,14 @@ def _paper_finals(
 
 def _paper_configuration(run: StoredRun) -> bool:
     """A run as the paper timed it: the algorithm's defaults (within-model runs: the true
-    hyperparameters only), the spec's default budget, a GP sample path's own options only."""
+    hyperparameters only), the spec's default budget, and problem options that do not change
+    the optimizer's work: a GP sample path's own options, a task's noise scale
+    (``value_range``)."""
     s = run.settings
     options = set(s["optimizer_options"]) - ({"hyperparameters"} if run.within_model else set())
-    task = set(s["problem_options"]) - (
-        {"dim", "lengthscale", "instance"} if s["problem"] == "gp_sample" else set()
-    )
+    task = set(s["problem_options"]) - {"value_range"}
+    if s["problem"] == "gp_sample":
+        task -= {"dim", "lengthscale", "instance"}
     return (
         run.algorithm_label == s["algorithm"]
         and not options

@@ -72,3 +72,46 @@ def test_gp_summary_leaves_out_ablation_variants() -> None:
         run("hartmann6", "sobol", "sobol"),
     ]
     assert gp_summary_runs(runs) == runs[:1]
+
+
+def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() -> None:
+    from localpbo_core.experiments.paper import paper_seconds
+    from localpbo_core.report import StoredRun, compute_table
+
+    def run(problem: str, label: str, problem_options: dict, **settings: object) -> StoredRun:
+        return StoredRun(
+            spec="s",
+            problem_label=label,
+            algorithm_label="sobol",
+            variant="",
+            seed=0,
+            within_model=False,
+            settings={
+                "problem": problem,
+                "algorithm": "sobol",
+                "optimizer_options": {},
+                "problem_options": problem_options,
+                "budget": None,
+                "noise_fraction": 0.1,
+                **settings,
+            },
+            best_seen=np.zeros(1),
+            cumulative=np.zeros(1),
+            optimizer_seconds=1.1,
+        )
+
+    rows = compute_table(
+        [
+            run("hopper", "hopper", {"value_range": 106.4}),  # noise scale only: comparable
+            run("walker2d", "walker2d_short", {"episode_steps": 50}),  # another task
+            run("hartmann6", "hartmann6_b40", {}, budget=40),  # another budget
+            run("gp_sample", "gp8", {"dim": 8, "lengthscale": 0.1, "instance": 0}),
+        ]
+    )[2:]
+    cells = {row.split(" | ")[1]: row.split(" | ")[5:] for row in rows}
+    hopper = paper_seconds("hopper", "sobol")
+    assert hopper is not None
+    assert cells["hopper"] == [f"{hopper:g}", f"{hopper / 1.1:.3g}x |"]
+    assert cells["walker2d_short"] == ["", " |"]
+    assert cells["hartmann6_b40"] == ["", " |"]
+    assert cells["gp8"][0] == f"{paper_seconds('gp8_l0.1/out', 'sobol'):g}"
