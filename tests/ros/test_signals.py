@@ -55,8 +55,13 @@ def test_second_signal_still_stops_cleanly(
         assert summarize(bag).complete
 
 
-def _start(cmd: list[str], tmp_path: Path) -> subprocess.Popen[str]:
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF", "ROS_DOMAIN_ID": "62"}
+def _start(cmd: list[str], tmp_path: Path, **extra_env: str) -> subprocess.Popen[str]:
+    env = {
+        **os.environ,
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF",
+        "ROS_DOMAIN_ID": "62",
+        **extra_env,
+    }
     cmd = [*cmd, "--ros-args", "-p", f"path:={tmp_path / 'stop.mcap'}"]
     return subprocess.Popen(
         cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
@@ -90,3 +95,21 @@ def test_clean_up_that_hangs_is_reported_and_ended(tmp_path: Path) -> None:
     assert proc.returncode == 1, out
     assert 1.5 < took < 20.0
     assert "Timeout" in out and "in close" in out, out
+
+
+def test_a_node_may_take_its_declared_close_timeout(tmp_path: Path) -> None:
+    # close() sleeps 3 s, beyond the script's 2 s grace but within the 2 + 2 s the node
+    # declares (as the bridge does for restoring parameters): a clean stop, the bag complete
+    script = str(Path(__file__).with_name("hanging_close.py"))
+    proc = _start([sys.executable, script], tmp_path, CLOSE_SLEEP_S="3", CLOSE_TIMEOUT_S="2")
+    try:
+        wait_ready(proc)
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out and "Timeout" not in out, out
+    assert summarize(tmp_path / "stop.mcap").complete

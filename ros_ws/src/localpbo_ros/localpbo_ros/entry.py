@@ -9,11 +9,12 @@ leave the second to Python's default handler). Once the node is closed the signa
 be ignored.
 
 Exiting is bounded. Once the spin loop has ended, the clean-up (closing the node, destroying it,
-shutting the DDS participant down) has ``STOP_GRACE_S`` seconds; should it hang, ``faulthandler``
-prints every thread's stack to stderr and the process exits with code 1 instead of waiting
-forever. After the clean-up the process leaves with ``os._exit``: everything it holds is closed
-by then, and skipping the interpreter's finalization skips the DDS library's static destructors,
-which are known to hang now and then at exit.
+shutting the DDS participant down) has ``STOP_GRACE_S`` seconds plus the node's
+``close_timeout_s`` (if it has one: the time its ``close`` may wait on purpose); should it
+hang, ``faulthandler`` prints every thread's stack to stderr and the process exits with code 1
+instead of waiting forever. After the clean-up the process leaves with ``os._exit``:
+everything it holds is closed by then, and skipping the interpreter's finalization skips the
+DDS library's static destructors, which are known to hang now and then at exit.
 """
 
 from __future__ import annotations
@@ -38,8 +39,9 @@ LINGER_S = 1.0
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 STOP_GRACE_S = 20.0
-"""Seconds the clean-up after the spin loop may take before the process reports where it hangs
-(every thread's stack on stderr) and exits with code 1."""
+"""Seconds the clean-up after the spin loop may take, beyond a node's own ``close_timeout_s``,
+before the process reports where it hangs (every thread's stack on stderr) and exits with
+code 1."""
 
 
 def stop_on_signals() -> threading.Event:
@@ -125,7 +127,10 @@ def _run(
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0
     finally:
-        faulthandler.dump_traceback_later(STOP_GRACE_S, exit=True)
+        # a node whose close() may wait on purpose (the bridge restoring parameters) says how
+        # long in ``close_timeout_s``; the watchdog adds it to the grace
+        grace = STOP_GRACE_S + float(getattr(node, "close_timeout_s", 0.0))
+        faulthandler.dump_traceback_later(grace, exit=True)
         if node is not None:
             if hasattr(node, "close"):
                 node.close()

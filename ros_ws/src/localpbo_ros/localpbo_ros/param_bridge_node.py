@@ -246,6 +246,11 @@ class ParamBridgeNode(FollowerNode):
         self.counters["restores"] += 1
         return self._set.call_async(SetParametersAtomically.Request(parameters=params))
 
+    @property
+    def close_timeout_s(self) -> float:
+        """How long ``close`` may wait for the target to take its parameters back."""
+        return float(self.settings["service_timeout_s"])
+
     def close(self) -> None:
         """Stopping: say so (the optimizer hands this worker's candidate to another one), set
         the original parameters back and wait (``service_timeout_s``)."""
