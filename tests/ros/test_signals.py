@@ -17,6 +17,22 @@ from localpbo_msgs_py.bag import summarize
 from .processes import wait_ready
 
 
+def _start(cmd: list[str], bag: Path | None, **extra_env: str) -> subprocess.Popen[str]:
+    """Start ``cmd`` on a host-only domain (with ``--ros-args -p path:=<bag>`` for a recorder),
+    stdout and stderr merged into one pipe."""
+    env = {
+        **os.environ,
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF",
+        "ROS_DOMAIN_ID": "62",
+        **extra_env,
+    }
+    if bag is not None:
+        cmd = [*cmd, "--ros-args", "-p", f"path:={bag}"]
+    return subprocess.Popen(
+        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+
+
 @pytest.mark.parametrize(
     ("module", "second", "gap_s"),
     [
@@ -31,12 +47,9 @@ def test_second_signal_still_stops_cleanly(
     module: str, second: signal.Signals, gap_s: float, tmp_path: Path
 ) -> None:
     bag = tmp_path / "sig.mcap"
-    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF", "ROS_DOMAIN_ID": "62"}
-    cmd = [sys.executable, "-m", f"localpbo_ros.{module}"]
-    if module == "recorder_node":
-        cmd += ["--ros-args", "-p", f"path:={bag}"]
-    proc = subprocess.Popen(
-        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    proc = _start(
+        [sys.executable, "-m", f"localpbo_ros.{module}"],
+        bag if module == "recorder_node" else None,
     )
     try:
         lines = wait_ready(proc)
@@ -55,21 +68,8 @@ def test_second_signal_still_stops_cleanly(
         assert summarize(bag).complete
 
 
-def _start(cmd: list[str], tmp_path: Path, **extra_env: str) -> subprocess.Popen[str]:
-    env = {
-        **os.environ,
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF",
-        "ROS_DOMAIN_ID": "62",
-        **extra_env,
-    }
-    cmd = [*cmd, "--ros-args", "-p", f"path:={tmp_path / 'stop.mcap'}"]
-    return subprocess.Popen(
-        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-    )
-
-
 def test_output_logged_while_stopping_is_not_lost(tmp_path: Path) -> None:
-    proc = _start([sys.executable, "-m", "localpbo_ros.recorder_node"], tmp_path)
+    proc = _start([sys.executable, "-m", "localpbo_ros.recorder_node"], tmp_path / "stop.mcap")
     lines = wait_ready(proc)
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=30)
@@ -79,7 +79,7 @@ def test_output_logged_while_stopping_is_not_lost(tmp_path: Path) -> None:
 
 def test_clean_up_that_hangs_is_reported_and_ended(tmp_path: Path) -> None:
     script = str(Path(__file__).with_name("hanging_close.py"))
-    proc = _start([sys.executable, script], tmp_path)
+    proc = _start([sys.executable, script], tmp_path / "stop.mcap")
     try:
         wait_ready(proc)
         proc.send_signal(signal.SIGINT)
@@ -101,7 +101,9 @@ def test_a_node_may_take_its_declared_close_timeout(tmp_path: Path) -> None:
     # close() sleeps 3 s, beyond the script's 2 s grace but within the 2 + 2 s the node
     # declares (as the bridge does for restoring parameters): a clean stop, the bag complete
     script = str(Path(__file__).with_name("hanging_close.py"))
-    proc = _start([sys.executable, script], tmp_path, CLOSE_SLEEP_S="3", CLOSE_TIMEOUT_S="2")
+    proc = _start(
+        [sys.executable, script], tmp_path / "stop.mcap", CLOSE_SLEEP_S="3", CLOSE_TIMEOUT_S="2"
+    )
     try:
         wait_ready(proc)
         proc.send_signal(signal.SIGINT)
