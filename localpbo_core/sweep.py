@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from localpbo_core.experiments import ExperimentSpec, PlannedRun
+from localpbo_core.provenance import code_block
 from localpbo_core.settings import SettingError
 
 RUN_SUFFIX = ".json.gz"
@@ -86,6 +87,7 @@ def execute_run(plan: PlannedRun) -> dict[str, Any]:
     doc = trace_document(plan.settings, trace)
     doc["run"] = plan.describe()
     doc["optimizer_seconds"] = sum(r.decision_seconds for r in trace.records)
+    doc["code"] = code_block(plan.settings.algorithm)
     return doc
 
 

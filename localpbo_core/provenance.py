@@ -1,0 +1,152 @@
+"""Which code made a stored run.
+
+A run's outcome is a function of its settings and of the code that executed it: the session,
+the optimizer, the surrogate, the problem and (for policy tasks) the simulator. Each stored run
+carries a ``code`` block with
+
+* ``digest``: SHA-256 over the source files a run executes (:data:`RUN_SOURCES`, every
+  ``*.py`` file below them, in sorted order, path and bytes), so two checkouts that would run
+  identically share a digest whatever their commits, and a change to a report or a CLI does
+  not mark runs as stale;
+* ``algorithm_digest``: the same over the files of the run's own algorithm (its module and
+  the modules every algorithm shares, :func:`algorithm_sources`), which tells whether *this*
+  algorithm changed since the run was stored;
+* ``commit``: the git commit of the checkout, when there is one, with ``dirty`` when the run
+  sources differed from it.
+
+:func:`stale_algorithms` compares stored blocks with today's code; the results page flags
+the groups it finds.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import subprocess
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+"""The checkout (or installed tree) holding ``localpbo_core`` and ``sims``."""
+
+RUN_SOURCES = (
+    "localpbo_core/optimizers",
+    "localpbo_core/surrogate",
+    "localpbo_core/problems",
+    "localpbo_core/session.py",
+    "localpbo_core/settings.py",
+    "localpbo_core/seeds.py",
+    "localpbo_core/loop.py",
+    "localpbo_core/threads.py",
+    "localpbo_core/validation.py",
+    "localpbo_core/space.py",
+    "sims",
+)
+"""What a run executes: changing any of these may change a stored run's trace."""
+
+SHARED_ALGORITHM_SOURCES = (
+    "localpbo_core/optimizers/preference_optimizer.py",
+    "localpbo_core/optimizers/base.py",
+    "localpbo_core/optimizers/recommendation.py",
+    "localpbo_core/optimizers/registry.py",
+    "localpbo_core/optimizers/botorch_adapter.py",
+    "localpbo_core/optimizers/surrogate_refit.py",
+    "localpbo_core/surrogate",
+    "localpbo_core/session.py",
+    "localpbo_core/seeds.py",
+    "localpbo_core/loop.py",
+)
+"""Every algorithm's common ground (ask/tell base, surrogate, run protocol)."""
+
+ALGORITHM_MODULES: dict[str, tuple[str, ...]] = {
+    "gipbo": ("gipbo.py", "gi_acquisition.py", "local_phase.py"),
+    "gipbor": ("gipbo.py", "gi_acquisition.py", "local_phase.py"),
+    "prefsqp": ("prefsqp.py", "local_phase.py", "acquisition.py"),
+    "turpbo": ("turpbo.py", "trust_region.py", "acquisition.py"),
+    "qeubo": ("qeubo.py", "acquisition.py"),
+    "hbei": ("hbei.py", "acquisition.py"),
+    "glisp": ("glisp.py",),
+    "sobol": ("sobol.py",),
+}
+"""Each algorithm's own modules under ``localpbo_core/optimizers``."""
+
+
+def _files(entries: Iterable[str]) -> list[Path]:
+    out: set[Path] = set()
+    for entry in entries:
+        path = ROOT / entry
+        if path.is_dir():
+            out.update(p for p in path.rglob("*.py") if "__pycache__" not in p.parts)
+        elif path.exists():
+            out.add(path)
+    return sorted(out)
+
+
+def _digest(entries: Iterable[str]) -> str:
+    h = hashlib.sha256()
+    for path in _files(entries):
+        h.update(path.relative_to(ROOT).as_posix().encode() + b"\0")
+        h.update(path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def algorithm_sources(algorithm: str) -> tuple[str, ...]:
+    """The files whose change may change ``algorithm``'s runs (its own and the shared ones;
+    an unknown name gets every run source)."""
+    own = ALGORITHM_MODULES.get(algorithm)
+    if own is None:
+        return RUN_SOURCES
+    return SHARED_ALGORITHM_SOURCES + tuple(f"localpbo_core/optimizers/{m}" for m in own)
+
+
+@functools.cache
+def _commit() -> tuple[str | None, bool]:
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(ROOT), "status", "--porcelain", "--", *RUN_SOURCES],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None, False
+    return head or None, bool(dirty)
+
+
+@functools.cache
+def code_block(algorithm: str) -> dict[str, Any]:
+    """The ``code`` block stored with a run of ``algorithm`` (module docstring)."""
+    commit, dirty = _commit()
+    return {
+        "digest": _digest(RUN_SOURCES),
+        "algorithm_digest": _digest(algorithm_sources(algorithm)),
+        "commit": commit,
+        "dirty": dirty,
+    }
+
+
+def stale_algorithms(docs: Iterable[dict[str, Any]]) -> dict[str, str]:
+    """Algorithms whose stored runs were made by other code than today's.
+
+    Returns ``{algorithm: reason}``: ``"no code version stored"`` for runs stored before
+    runs carried one, ``"changed since stored"`` when the stored ``algorithm_digest`` differs
+    from today's. Copies (``reused_from``) are judged by the block they carry.
+    """
+    out: dict[str, str] = {}
+    for doc in docs:
+        algorithm = str((doc.get("settings") or {}).get("algorithm"))
+        code = doc.get("code")
+        if not isinstance(code, dict):
+            out.setdefault(algorithm, "no code version stored")
+        elif code.get("algorithm_digest") != code_block(algorithm)["algorithm_digest"]:
+            out[algorithm] = "changed since stored"
+    return out
