@@ -11,7 +11,13 @@ A task is a maximisation problem on theta in [0,1]^d that satisfies ``localpbo_c
   ``W`` of shape (actions, observations), ``d = actions * observations``.
 * Box: theta maps affinely onto ``W`` in ``[weight_low, weight_high]^d`` = ``[-1, 1]^d`` by
   default, ``W.ravel() = weight_low + (weight_high - weight_low) * theta`` (row-major:
-  the weights of action 0 first).
+  the weights of action 0 first). ``around_ars = r`` (Hopper, Walker2d) centres the box on
+  the published ARS policy instead: ``W_ars ± r`` per weight (unclipped), so θ = 0.5 is that
+  policy and every θ a perturbation of it; the episodes last long enough to be watched (on
+  Hopper with ``r = 0.1``: 0.6–8 s, against 0.05–0.14 s for most points of the default box).
+  ``ARS_RADII`` holds the radius ``localpbo run --oracle human`` uses.
+* Goal: ``GOALS`` (and ``LinearPolicyTask.goal``) says in one line what "better" means for a
+  person judging two episodes.
 * Observation normalisation: fixed ARS statistics (``data/ars/``) for Hopper and Walker2d;
   identity (mean 0, std 1) for Swimmer, which has no ARS data here.
 * Reward: gymnasium's v5 reward. **Alive bonus removed by default** (``alive_bonus=False``
@@ -86,6 +92,22 @@ Reproduce with ``python -m localpbo_core.problems.calibrate --problem NAME --poi
 """
 
 
+GOALS: dict[str, str] = {
+    "hopper": "Better = hops farther forward (to the right) without falling, with less effort.",
+    "walker2d": "Better = walks farther forward (to the right) without falling, with less effort.",
+    "swimmer": "Better = swims farther forward (to the right) in the same time, with less effort.",
+}
+"""What "better" means for each task, in the words of its reward (forward progress minus the
+control cost), for the person who judges duels of its episodes."""
+
+ARS_RADII: dict[str, float] = {"hopper": 0.1, "walker2d": 0.05}
+"""The ``around_ars`` radius (weight units) a person's run uses by default: perturbations of
+the ARS policy whose episodes mostly last long enough to be judged (measured on 12 random
+perturbations each: Hopper 0.1 gives 80–1000 steps, returns 81–2804; Walker2d 0.05 gives
+15–1000 steps, a third of them shorter than 0.2 s, and a wider radius makes most fall at once).
+"""
+
+
 class ThetaFromWeights(NamedTuple):
     """Result of mapping weights into the unit cube: ``theta`` and which entries were clipped."""
 
@@ -138,6 +160,8 @@ class LinearPolicyTask:
         value_range: override of the stored value range (needed by the oracle when the task
             definition differs from the calibrated default: other box, alive bonus kept,
             other episode length; those otherwise get ``nan``).
+        around_ars: the box ``W_ars ± around_ars`` per weight around the task's ARS policy
+            instead of ``[weight_low, weight_high]`` (which must then keep their defaults).
 
     Attributes:
         calibrated: the options keep the definition ``VALUE_RANGES`` was calibrated for.
@@ -153,6 +177,7 @@ class LinearPolicyTask:
         episode_steps: int = EPISODE_STEPS,
         cache_size: int = 4096,
         value_range: float | None = None,
+        around_ars: float | None = None,
     ) -> None:
         if not isinstance(name, str) or name not in _TASKS:
             raise ValueError(
@@ -177,14 +202,31 @@ class LinearPolicyTask:
         if not isinstance(alive_bonus, bool):
             raise ValueError(f"alive_bonus: expected a bool, got {alive_bonus!r}")
         config = _TASKS[name]
+        low: float | np.ndarray = float(weight_low)
+        high: float | np.ndarray = float(weight_high)
+        if around_ars is not None:
+            if isinstance(around_ars, bool) or not isinstance(around_ars, int | float):
+                raise ValueError(f"around_ars: expected a number, got {around_ars!r}")
+            if not (np.isfinite(around_ars) and around_ars > 0):
+                raise ValueError(f"around_ars: expected a positive radius, got {around_ars!r}")
+            if config.ars_task is None:
+                raise ValueError(
+                    f"around_ars: {name} has no ARS policy; valid for hopper, walker2d"
+                )
+            if (low, high) != (-1.0, 1.0):
+                raise ValueError("around_ars: weight_low/weight_high must keep their defaults")
+            centre = load_ars_policy(config.ars_task).weights.ravel()
+            low, high = centre - float(around_ars), centre + float(around_ars)
+        self.around_ars = None if around_ars is None else float(around_ars)
         spec = config.spec
         if spec.kind == "planar_walker" and not alive_bonus:
             spec = EnvSpec(**{**spec.__dict__, "healthy_reward": 0.0})
         self.name = name
         self.alive_bonus = alive_bonus
         self.spec = spec
-        self.weight_low = float(weight_low)
-        self.weight_high = float(weight_high)
+        self.weight_low = low
+        self.weight_high = high
+        self.goal = GOALS[name]
         self.episode_steps = episode_steps
         self._runner = EpisodeRunner(spec)
         self.obs_dim = self._runner.obs_dim
@@ -195,12 +237,15 @@ class LinearPolicyTask:
             self.obs_mean, self.obs_std = ars.obs_mean, ars.obs_std
         else:
             self.obs_mean, self.obs_std = np.zeros(self.obs_dim), np.ones(self.obs_dim)
-        same_definition = calibrated_definition(
-            name,
-            alive_bonus=alive_bonus,
-            weight_low=weight_low,
-            weight_high=weight_high,
-            episode_steps=episode_steps,
+        same_definition = (
+            calibrated_definition(
+                name,
+                alive_bonus=alive_bonus,
+                weight_low=weight_low,
+                weight_high=weight_high,
+                episode_steps=episode_steps,
+            )
+            and around_ars is None
         )
         if value_range is not None:
             self.value_range = float(value_range)
@@ -211,9 +256,14 @@ class LinearPolicyTask:
         self._cache_size = int(cache_size)
 
     def __repr__(self) -> str:
+        box = (
+            f"around_ars={self.around_ars}"
+            if self.around_ars is not None
+            else f"box=[{self.weight_low}, {self.weight_high}]"
+        )
         return (
             f"LinearPolicyTask({self.name!r}, dim={self.dim}, alive_bonus={self.alive_bonus}, "
-            f"box=[{self.weight_low}, {self.weight_high}])"
+            f"{box})"
         )
 
     # -- theta <-> weights -------------------------------------------------------------
@@ -289,10 +339,12 @@ class LinearPolicyTask:
             or np.any(flat < self.weight_low)
             or np.any(flat > self.weight_high)
         ):
-            raise ValueError(
-                f"x: weights must be finite and in [{self.weight_low}, {self.weight_high}] "
-                f"for {self.name}"
+            box = (
+                f"W_ars ± {self.around_ars}"
+                if self.around_ars is not None
+                else f"[{self.weight_low}, {self.weight_high}]"
             )
+            raise ValueError(f"x: weights must be finite and in {box} for {self.name}")
         return flat.reshape(self.action_dim, self.obs_dim)
 
     def evaluate_native(self, x: np.ndarray, seed: int) -> float:
@@ -343,6 +395,7 @@ class TaskOptions(TypedDict, total=False):
     episode_steps: int
     cache_size: int
     value_range: float | None
+    around_ars: float | None
 
 
 def recorded_value_range(name: str, **options: Unpack[TaskOptions]) -> float:
@@ -359,13 +412,15 @@ def calibrated_definition(
     weight_low: float = -1.0,
     weight_high: float = 1.0,
     episode_steps: int = EPISODE_STEPS,
+    around_ars: float | None = None,
     **_: object,
 ) -> bool:
     """Whether the task ``name`` with these options is the one ``VALUE_RANGES`` was calibrated
     for: box [-1, 1], 1000-step episodes, and no alive bonus where the task has one."""
     bonus_changed = alive_bonus and _TASKS[name].spec.kind == "planar_walker"
     default_box = (float(weight_low), float(weight_high)) == (-1.0, 1.0)
-    return default_box and not bonus_changed and episode_steps == EPISODE_STEPS
+    centred = around_ars is not None
+    return default_box and not centred and not bonus_changed and episode_steps == EPISODE_STEPS
 
 
 def make_task(name: str, **options: Unpack[TaskOptions]) -> LinearPolicyTask:

@@ -28,6 +28,7 @@ MUJOCO_OPTIONS: tuple[str, ...] = (
     "episode_steps",
     "cache_size",
     "value_range",
+    "around_ars",
 )
 """The options a MuJoCo task takes (``localpbo_sims.LinearPolicyTask``)."""
 
@@ -43,7 +44,8 @@ def make_problem(name: str, **options: Any) -> Problem:
     Synthetic problems take no options. ``gp_sample`` takes ``dim`` and ``lengthscale``
     (required), ``instance`` (default 0) and ``num_features`` (default 4096). MuJoCo tasks
     accept the keyword options of ``localpbo_sims.LinearPolicyTask`` (``alive_bonus``,
-    ``weight_low``, ``weight_high``, ``episode_steps``, ``cache_size``, ``value_range``).
+    ``weight_low``, ``weight_high``, ``episode_steps``, ``cache_size``, ``value_range``,
+    ``around_ars``).
 
     Raises:
         ValueError: unknown name (the message lists the valid ones) or unknown option.

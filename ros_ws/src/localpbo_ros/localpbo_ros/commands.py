@@ -118,9 +118,18 @@ def add_subcommands(subparsers: Any) -> None:
     run.add_argument(
         "--oracle",
         choices=("simulated", "human"),
-        default="simulated",
-        help="who answers the duels: the simulated oracle (episode returns plus noise) or "
-        "you, in a browser (prints the page's URL and waits for your answers)",
+        default=None,
+        help="who answers the duels: the simulated oracle (episode returns plus noise; the "
+        "default) or you, in a browser (prints the page's URL and waits for your answers); "
+        "--resume keeps the recorded one",
+    )
+    run.add_argument(
+        "--warm-start",
+        choices=("auto", "ars", "none"),
+        default="auto",
+        help="'ars': start from the published ARS policy and tune perturbations of it (task "
+        "option around_ars, Hopper and Walker2d), so the episodes last long enough to watch; "
+        "'auto' (default): 'ars' with --oracle human on those tasks, else 'none'",
     )
     run.add_argument(
         "--judge",
@@ -191,9 +200,46 @@ def speculate_of(args: argparse.Namespace) -> bool:
     return getattr(args, "oracle", "") == "human"
 
 
+def warm_start_of(args: argparse.Namespace) -> tuple[str, str]:
+    """``--algorithm-options`` and ``--task-options`` with ``--warm-start``: for ``ars`` the
+    task's box centred on its ARS policy (``around_ars``, radius ``ARS_RADII``) and that policy
+    (θ = 0.5) as the warm start, unless the options already set a box or a warm start.
+
+    Raises:
+        ValueError: ``--warm-start ars`` on a task without an ARS policy.
+    """
+    from localpbo_sims.tasks import ARS_RADII
+
+    choice = getattr(args, "warm_start", "none")
+    if choice == "auto":
+        person = getattr(args, "oracle", None) == "human"
+        choice = "ars" if person and args.task in ARS_RADII and not args.space else "none"
+    if choice == "none":
+        return args.algorithm_options, args.task_options
+    if args.task not in ARS_RADII or args.space:
+        raise ValueError(
+            f"--warm-start ars: no ARS policy for {args.task!r}; valid: hopper, walker2d"
+        )
+    task_options = json.loads(args.task_options)
+    algorithm_options = json.loads(args.algorithm_options)
+    if not {"around_ars", "weight_low", "weight_high"} & set(task_options):
+        task_options["around_ars"] = ARS_RADII[args.task]
+    if "around_ars" in task_options and "warm_start" not in algorithm_options:
+        from localpbo_sims import make_task
+
+        dim = make_task(args.task).dim
+        algorithm_options["warm_start"] = [0.5] * dim  # the box's centre: the ARS policy
+    return json.dumps(algorithm_options), json.dumps(task_options)
+
+
 def run_settings(args: argparse.Namespace) -> dict[str, Any]:
-    """Optimizer-node parameters from ``run`` arguments."""
+    """Optimizer-node parameters from ``run`` arguments.
+
+    Raises:
+        ValueError: ``--warm-start ars`` on a task without an ARS policy.
+    """
     run_id = args.run_id or time.strftime("run-%Y%m%dT%H%M%SZ", time.gmtime())
+    algorithm_options, task_options = warm_start_of(args)
     return {
         "run_id": run_id,
         "algorithm": args.algorithm,
@@ -204,27 +250,45 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
         "noise_fraction": float(args.noise),
         "tie_threshold": tie_threshold_of(args),
         "indifference": float(args.indifference),
-        "algorithm_options": args.algorithm_options,
-        "task_options": args.task_options,
+        "algorithm_options": algorithm_options,
+        "task_options": task_options,
         "failure_policy": args.failure_policy,
         "space": args.space,
         "speculate": speculate_of(args),
+        "oracle": args.oracle or "simulated",
     }
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``localpbo run``."""
     from localpbo_ros.bagtools import load_run
+    from localpbo_ros.driver import judged_by_person
     from localpbo_ros.params import ParameterError
     from localpbo_ros.suite import default_bag, run_suite
 
-    settings = run_settings(args)
     if args.resume is not None:
+        args.warm_start = "none"  # the recorded config rules
         try:
-            settings["run_id"] = load_run(args.resume).config.run_id
+            recorded = load_run(args.resume).config
         except (OSError, ValueError) as exc:
             print(f"localpbo run: --resume: {exc}", file=sys.stderr)
             return EXIT_USAGE
+        if judged_by_person(recorded):
+            if args.oracle == "simulated":
+                print(
+                    f"localpbo run: --oracle simulated: run {recorded.run_id} is judged by a "
+                    "person; resume it with --oracle human (or without --oracle)",
+                    file=sys.stderr,
+                )
+                return EXIT_USAGE
+            args.oracle = "human"
+    try:
+        settings = run_settings(args)
+    except ValueError as exc:
+        print(f"localpbo run: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.resume is not None:
+        settings["run_id"] = recorded.run_id
     bag = Path(args.bag) if args.bag else default_bag(args.out, settings["run_id"])
     if args.resume is not None and bag.resolve() == Path(args.resume).resolve():
         bag = bag.with_name(bag.stem + "-resumed.mcap")
@@ -248,7 +312,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     judge = None
     if args.oracle == "human":
-        judge = {"state_dir": str(bag.parent / "judge"), **json.loads(args.judge)}
+        # a resumed run keeps the first run's journal, secret and port (next to its bag)
+        folder = (bag if args.resume is None else Path(args.resume)).parent / "judge"
+        judge = {"state_dir": str(folder), **json.loads(args.judge)}
 
     def show_url(url: str) -> None:
         text = f"judge the duels at {url}"

@@ -20,7 +20,8 @@ Run-config ``options`` layout::
 
     {"optimizer": {<algorithm options>, "initial_design": int},
      "task": {<problem options, e.g. episode_steps, value_range>},
-     "oracle": {"noise_fraction": float, "tie_threshold": float, "indifference": float},
+     "oracle": {"noise_fraction": float, "tie_threshold": float, "indifference": float,
+                "kind": "person"},                     # kind only when a person judges
      "failure": {"policy": "retry" | "stop", "max_retries": int},
      "space": {"name", "parameters": [{"name", "lower", "upper", "log", "initial", "unit",
                "description"}], "value_range"}}            # only in space runs
@@ -74,6 +75,8 @@ OPTION_SECTIONS = ("optimizer", "task", "oracle", "failure", "space")
 FAILURE_POLICIES = ("retry", "stop")
 DEFAULT_FAILURE_POLICY = "retry"
 DEFAULT_MAX_RETRIES = 2
+PERSON = "person"
+"""``options.oracle.kind`` of a run a person judges (absent: the simulated oracle)."""
 
 
 def section(config: RunConfig, name: str) -> dict[str, Any]:
@@ -101,6 +104,11 @@ def settings_of(config: RunConfig) -> RunSettings:
         optimizer_options=optimizer,
         problem_options=replayed_problem_options(config.task, section(config, "task")),
     )
+
+
+def judged_by_person(config: RunConfig) -> bool:
+    """A person answers this run's duels (``options.oracle.kind == "person"``)."""
+    return section(config, "oracle").get("kind") == PERSON
 
 
 def space_of(config: RunConfig) -> ParameterSpace | None:
@@ -153,8 +161,12 @@ def make_run_config(
     max_retries: int = DEFAULT_MAX_RETRIES,
     session: Session | None = None,
     space: ParameterSpace | None = None,
+    person: bool = False,
 ) -> RunConfig:
     """The run config of ``settings``, validated by building the run once.
+
+    ``person``: a person answers the duels (``judge_node``); recorded as ``oracle.kind =
+    "person"`` so that a resume continues with a person (:func:`judged_by_person`).
 
     With ``space`` the run tunes it (task ``space:<name>``, any ``settings.problem`` and
     problem options are replaced); its initial values become the optimizer's ``warm_start``
@@ -178,6 +190,8 @@ def make_run_config(
         oracle["tie_threshold"] = settings.tie_threshold
     if settings.indifference > 0:
         oracle["indifference"] = settings.indifference
+    if person:
+        oracle["kind"] = PERSON
     options = {
         "optimizer": {**settings.optimizer_options, "initial_design": settings.initial_design},
         "task": recorded_problem_options(

@@ -81,6 +81,7 @@ from localpbo_ros.driver import (
     DEFAULT_MAX_RETRIES,
     FAILURE_POLICIES,
     Driver,
+    judged_by_person,
     make_run_config,
     rebuild,
     settings_of,
@@ -149,6 +150,13 @@ PARAMS = [
         "The simulated oracle answers 'can't tell' when its noisy difference is below this "
         "fraction of the task's value range (needs tie_threshold > 0; 0 = never).",
         float_range=(0.0, 10.0),
+    ),
+    Param(
+        "oracle",
+        "simulated",
+        "Who answers the duels; 'human' is recorded in the run config (oracle.kind person), "
+        "so a resume continues with a person.",
+        choices=("simulated", "human"),
     ),
     Param(
         "failure_policy",
@@ -257,6 +265,7 @@ def config_from_settings(s: dict[str, Any]) -> RunConfig:
             failure_policy=s["failure_policy"],
             max_retries=s["max_retries"],
             space=space,
+            person=s["oracle"] == "human",
         )
     except SettingError as exc:
         name = PARAMETER_OF_SETTING.get(exc.field.split(".", 1)[0], "algorithm_options")
@@ -288,6 +297,7 @@ def settings_from_config(config: RunConfig) -> dict[str, Any]:
         "indifference": float(settings.indifference),
         "failure_policy": failure.get("policy", DEFAULT_FAILURE_POLICY),
         "max_retries": int(failure.get("max_retries", DEFAULT_MAX_RETRIES)),
+        "oracle": "human" if judged_by_person(config) else "simulated",
         **extra,
     }
 
@@ -321,6 +331,7 @@ class OptimizerNode(SuiteNode):
         else:
             self.driver = Driver(self.config)
         self.resumed_duels = self.driver.n_duels
+        self.counters["duels_done"] = self.driver.n_duels  # a resumed run counts its history
         self.finished = False
         self.error = ""
         self._attempts: dict[int, int] = {}

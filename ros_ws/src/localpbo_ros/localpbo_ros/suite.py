@@ -39,6 +39,7 @@ from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
 from localpbo_ros.dds import host_scope, in_process_scope
+from localpbo_ros.driver import judged_by_person
 from localpbo_ros.judge_node import JudgeNode
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
@@ -98,8 +99,15 @@ def run_suite(
     if judge is not None:
         settings.setdefault("duel_timeout_s", HUMAN_DUEL_TIMEOUT_S)
         settings.setdefault("tie_threshold", DEFAULT_TIE_THRESHOLD)
+        settings["oracle"] = "human"
     if resume is not None:
         recorded = load_run(resume)
+        if judge is None and judged_by_person(recorded.config):
+            raise ParameterError(
+                "oracle",
+                f"run {recorded.config.run_id} is judged by a person: resume it with "
+                "--oracle human (judge=...), never with simulated answers",
+            )
         timing = ("duel_timeout_s", "republish_period_s", "speculate")
         kept: dict[str, Any] = {k: settings[k] for k in timing if k in settings}
         settings = {**settings_from_config(recorded.config), **kept}
