@@ -5,6 +5,7 @@ A space file (YAML, or the same mapping as JSON) lists the parameters to tune::
     name: pid                     # optional; the file's stem by default
     value_range: 20.0             # optional: approximate spread of the trial scores; scales
                                   # the simulated oracle's noise (noise_fraction × value_range)
+    goal: settles fast without overshoot   # optional: what "better" means, shown to a person
     parameters:
       - name: kp                  # the parameter (the target node's name unless mapped)
         lower: 0.1
@@ -19,7 +20,14 @@ in [0,1]^d to the user's units (:meth:`ParameterSpace.to_native`; on a log scale
 ``exp(log lo + θ (log hi − log lo))``) and back (:meth:`ParameterSpace.from_native`), but it
 has no evaluation of its own: the trials run on the user's system (``param_bridge_node``).
 Every refusal is a :class:`~localpbo_core.validation.SettingError` whose field names the
-parameter, e.g. ``space.kp.lower`` (``space.parameters[2].name`` while the name is unknown).
+parameter, e.g. ``space.kp.lower`` (``space.parameters[2].name`` while the name is unknown);
+:func:`load_space` also names the file (``file pid.yaml: ...``).
+
+Hostile files are refused before they cost time or memory: a file (or inline text) larger than
+``MAX_SPACE_BYTES`` is refused before it is parsed; YAML anchors and aliases are refused (a
+space needs none, and aliases are how a small file expands into gigabytes), as is nesting
+deeper than ``MAX_DEPTH``; text that is not UTF-8, or YAML that is not a mapping, is reported
+as such; values quoted in messages are shortened (:func:`shown`).
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import json
 import math
 import os
 import re
+import reprlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,10 +51,15 @@ __all__ = ["ParameterSpace", "SpaceParameter", "load_space", "parse_space"]
 NAME_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,99}")
 """Parameter names: ROS parameter names (dots allowed for nested ones)."""
 SPACE_NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
-SPACE_KEYS = ("name", "value_range", "parameters")
+SPACE_KEYS = ("name", "value_range", "goal", "parameters")
 PARAMETER_KEYS = ("name", "lower", "upper", "log", "initial", "unit", "description")
 MAX_PARAMETERS = 1000
 MAX_TEXT = 1000
+MAX_SPACE_BYTES = 1 << 20
+"""Largest space file or inline space text (1 MiB), checked before parsing; a run config
+(itself at most 1 MiB) always fits, so a recorded space can be given back inline."""
+MAX_DEPTH = 8
+"""Deepest nesting of mappings and sequences a space file may have (a space needs 3)."""
 TASK_PREFIX = "space:"
 """The task name of a space run in the run config: ``space:<name>``."""
 
@@ -87,6 +101,8 @@ class ParameterSpace:
     label: str
     parameters: tuple[SpaceParameter, ...]
     value_range: float = math.nan
+    goal: str = ""
+    """What "better" means, in one line, for a person judging trials (optional)."""
 
     @property
     def name(self) -> str:
@@ -179,6 +195,8 @@ class ParameterSpace:
         }
         if math.isfinite(self.value_range):
             out["value_range"] = self.value_range
+        if self.goal:
+            out["goal"] = self.goal
         return out
 
     def evaluate(self, theta: np.ndarray, seed: int) -> float:
@@ -194,21 +212,47 @@ class ParameterSpace:
         raise NotImplementedError(f"{self.name} has no known true value")
 
 
+_SHOWN = reprlib.Repr()
+_SHOWN.maxlevel, _SHOWN.maxdict, _SHOWN.maxlist = 2, 4, 4
+_SHOWN.maxstring = _SHOWN.maxother = 60
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` cut to a few dozen characters (nested containers and long text
+    abbreviated with ``...``), for quoting values of a file in messages."""
+    return _SHOWN.repr(value)
+
+
 def _unknown(field: str, obj: Mapping[str, Any], allowed: Sequence[str]) -> None:
     for key in obj:
         if key not in allowed:
-            raise SettingError(f"{field}.{key}", f"unknown key; allowed: {', '.join(allowed)}")
+            raise SettingError(
+                f"{field}.{shown(key) if not isinstance(key, str) else key[:60]}",
+                f"unknown key; allowed: {', '.join(allowed)}",
+            )
 
 
 def _text(field: str, value: object) -> str:
     if not isinstance(value, str) or len(value) > MAX_TEXT:
-        raise SettingError(field, f"must be text of at most {MAX_TEXT} characters, got {value!r}")
+        size = f" ({len(value)} characters)" if isinstance(value, str) else ""
+        raise SettingError(
+            field, f"must be text of at most {MAX_TEXT} characters, got {shown(value)}{size}"
+        )
     return value
+
+
+def _float(field: str, value: object, **bounds: Any) -> float:
+    """:func:`check_float` of a number (or numeric text); anything else refused here, so
+    the message quotes it shortened."""
+    value = _number(value)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SettingError(field, f"must be a finite number, got {shown(value)}")
+    return check_float(field, value, **bounds)
 
 
 def _number(value: object) -> object:
     """YAML 1.1 reads ``1e-3`` (no dot) as text: accept numeric text, refuse the rest later."""
-    if isinstance(value, str):
+    if isinstance(value, str) and len(value) <= 100:
         try:
             return float(value)
         except ValueError:
@@ -219,11 +263,11 @@ def _number(value: object) -> object:
 def _parameter(index: int, obj: object, seen: set[str]) -> SpaceParameter:
     where = f"space.parameters[{index}]"
     if not isinstance(obj, Mapping):
-        raise SettingError(where, f"must be a mapping with name, lower, upper, got {obj!r}")
+        raise SettingError(where, f"must be a mapping with name, lower, upper, got {shown(obj)}")
     name = obj.get("name")
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         raise SettingError(
-            f"{where}.name", f"must be a parameter name like kp or gains.kp, got {name!r}"
+            f"{where}.name", f"must be a parameter name like kp or gains.kp, got {shown(name)}"
         )
     if name in seen:
         raise SettingError(f"{where}.name", f"{name!r} is listed twice")
@@ -233,18 +277,18 @@ def _parameter(index: int, obj: object, seen: set[str]) -> SpaceParameter:
     for key in ("lower", "upper"):
         if key not in obj:
             raise SettingError(f"{field}.{key}", "is required")
-    lower = check_float(f"{field}.lower", _number(obj["lower"]))
-    upper = check_float(f"{field}.upper", _number(obj["upper"]))
+    lower = _float(f"{field}.lower", obj["lower"])
+    upper = _float(f"{field}.upper", obj["upper"])
     if not lower < upper:
         raise SettingError(f"{field}.lower", f"must be below upper ({lower!r} >= {upper!r})")
     log = obj.get("log", False)
     if not isinstance(log, bool):
-        raise SettingError(f"{field}.log", f"must be true or false, got {log!r}")
+        raise SettingError(f"{field}.log", f"must be true or false, got {shown(log)}")
     if log and lower <= 0.0:
         raise SettingError(f"{field}.lower", f"must be > 0 on a log scale, got {lower!r}")
     initial = obj.get("initial")
     if initial is not None:
-        initial = check_float(f"{field}.initial", _number(initial), minimum=lower, maximum=upper)
+        initial = _float(f"{field}.initial", initial, minimum=lower, maximum=upper)
     return SpaceParameter(
         name,
         lower,
@@ -263,14 +307,16 @@ def parse_space(obj: object, default_name: str = "space") -> ParameterSpace:
         SettingError: naming the refused field (``space.kp.upper``, ``space.parameters``, …).
     """
     if not isinstance(obj, Mapping):
-        raise SettingError("space", f"must be a mapping with a 'parameters' list, got {obj!r}")
+        raise SettingError("space", f"must be a mapping with a 'parameters' list, got {shown(obj)}")
     _unknown("space", obj, SPACE_KEYS)
     label = obj.get("name", default_name)
     if not isinstance(label, str) or not SPACE_NAME_PATTERN.fullmatch(label):
-        raise SettingError("space.name", f"must match [A-Za-z0-9][A-Za-z0-9_.-]*, got {label!r}")
+        raise SettingError(
+            "space.name", f"must match [A-Za-z0-9][A-Za-z0-9_.-]*, got {shown(label)}"
+        )
     value_range = math.nan
     if obj.get("value_range") is not None:
-        value_range = check_float(
+        value_range = _float(
             "space.value_range", obj["value_range"], minimum=0.0, minimum_open=True
         )
     params = obj.get("parameters")
@@ -280,7 +326,8 @@ def parse_space(obj: object, default_name: str = "space") -> ParameterSpace:
         raise SettingError("space.parameters", f"at most {MAX_PARAMETERS} parameters")
     seen: set[str] = set()
     parsed = tuple(_parameter(i, p, seen) for i, p in enumerate(params))
-    return ParameterSpace(label, parsed, value_range)
+    goal = _text("space.goal", obj.get("goal", ""))
+    return ParameterSpace(label, parsed, value_range, goal)
 
 
 def _stem_name(path: Path) -> str:
@@ -288,25 +335,96 @@ def _stem_name(path: Path) -> str:
     return stem if SPACE_NAME_PATTERN.fullmatch(stem) else "space"
 
 
+def _read_limited(path: Path) -> bytes:
+    """At most ``MAX_SPACE_BYTES`` of ``path``; larger files are refused before reading them
+    whole (also a device or pipe that never ends)."""
+    try:
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            if size > MAX_SPACE_BYTES:
+                raise SettingError(
+                    "space",
+                    f"file {path}: is {size} bytes, more than the limit of {MAX_SPACE_BYTES} "
+                    "bytes (1 MiB); a space file lists parameters and needs a few kB",
+                )
+            data = stream.read(MAX_SPACE_BYTES + 1)
+    except OSError as exc:
+        raise SettingError("space", f"file {path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > MAX_SPACE_BYTES:
+        raise SettingError(
+            "space", f"file {path}: is more than the limit of {MAX_SPACE_BYTES} bytes (1 MiB)"
+        )
+    return data
+
+
+def _parse_yaml(text: str, where: str) -> object:
+    """YAML without anchors/aliases and nested at most ``MAX_DEPTH`` deep (checked on the
+    event stream, which stops at the first offence), then loaded safely."""
+    import yaml
+
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=loader):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+                mark = event.start_mark
+                raise SettingError(
+                    "space",
+                    f"{where}: uses a YAML anchor or alias (line {mark.line + 1}, column "
+                    f"{mark.column + 1}); a space file must spell every value out",
+                )
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise SettingError(
+                        "space",
+                        f"{where}: is nested more than {MAX_DEPTH} levels deep (line "
+                        f"{event.start_mark.line + 1})",
+                    )
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+        return yaml.load(text, Loader=loader)
+    except yaml.YAMLError as exc:
+        raise SettingError("space", f"{where}: is not YAML: {shown(str(exc))}") from None
+
+
 def load_space(source: str | os.PathLike[str]) -> ParameterSpace:
     """A space from a YAML/JSON file, or from inline text that starts with ``{``.
 
     Raises:
-        SettingError: ``space`` when the file cannot be read or parsed, else the refused field.
+        SettingError: ``space`` when the file cannot be read, is too large, is not UTF-8 text
+            or not a YAML mapping, uses anchors/aliases or nests too deep; else the refused
+            field. Every message of a file's refusal starts with ``file <path>:``.
     """
     text = str(source)
     if text.lstrip().startswith("{"):
+        if len(text) > MAX_SPACE_BYTES:
+            raise SettingError(
+                "space",
+                f"inline space: is {len(text)} characters, more than the limit of "
+                f"{MAX_SPACE_BYTES}",
+            )
         try:
-            return parse_space(json.loads(text))
-        except json.JSONDecodeError as exc:
-            raise SettingError("space", f"inline space is not JSON: {exc}") from None
-    import yaml
+            data = json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise SettingError("space", f"inline space is not JSON: {shown(str(exc))}") from None
+        return parse_space(data)
 
     path = Path(source)
+    where = f"file {path}"
+    raw = _read_limited(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise SettingError("space", f"cannot read {path}: {exc.strerror or exc}") from None
-    except yaml.YAMLError as exc:
-        raise SettingError("space", f"{path} is not YAML: {exc}") from None
-    return parse_space(data, default_name=_stem_name(path))
+        decoded = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SettingError(
+            "space", f"{where}: is not a YAML mapping (not UTF-8 text: byte {exc.start})"
+        ) from None
+    if "\x00" in decoded:
+        raise SettingError("space", f"{where}: is not a YAML mapping (binary data)")
+    data = _parse_yaml(decoded, where)
+    if not isinstance(data, Mapping):
+        raise SettingError("space", f"{where}: is not a YAML mapping (got {shown(data)})")
+    try:
+        return parse_space(data, default_name=_stem_name(path))
+    except SettingError as exc:
+        raise SettingError(exc.field, f"{where}: {exc.reason}") from None

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from localpbo_core.space import ParameterSpace, load_space, parse_space
+from localpbo_core.space import MAX_SPACE_BYTES, ParameterSpace, load_space, parse_space
 from localpbo_core.validation import SettingError
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "ros_ws/src/localpbo_examples/config/pid_space.yaml"
@@ -125,3 +127,124 @@ def test_from_native_refuses_values_outside_the_box() -> None:
     with pytest.raises(SettingError) as err:
         space.from_native([1000.0])
     assert err.value.field == "kp"
+
+
+# ----------------------------------------------------------------- hostile files
+
+BOMB_LEVELS = 9  # 9 levels of 9 aliases: 9**9 ≈ 3.9e8 leaves once expanded
+
+
+def alias_bomb(field: str) -> str:
+    """A billion-laughs space file whose ``field`` holds the expansion."""
+    lines = ['a0: &a0 "lol"']
+    for level in range(1, BOMB_LEVELS + 1):
+        refs = ", ".join(f"*a{level - 1}" for _ in range(9))
+        lines.append(f"a{level}: &a{level} [{refs}]")
+    top = f"*a{BOMB_LEVELS}"
+    if field == "name":
+        body = f"name: {top}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
+    elif field == "value_range":
+        body = f"value_range: {top}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
+    else:
+        body = f"parameters:\n  - {{name: kd, lower: 0, upper: 1, description: {top}}}\n"
+    # the anchors live in an unknown key placed last, as the file's author would hide them
+    return body + "bomb:\n" + "\n".join("  " + line for line in lines) + "\n"
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("field", ["description", "value_range", "name"])
+def test_alias_bomb_is_refused_fast_in_bounded_memory(tmp_path: Path, field: str) -> None:
+    """In a child process limited to 1 GiB of address space and 30 s: refused, not expanded."""
+    path = tmp_path / "bomb.yaml"
+    path.write_text(alias_bomb(field))
+    script = (
+        "import resource, sys\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))\n"
+        "from localpbo_core.space import load_space\n"
+        "from localpbo_core.validation import SettingError\n"
+        "try:\n"
+        "    load_space(sys.argv[1])\n"
+        "except SettingError as exc:\n"
+        "    print(exc.field, '|', exc.reason)\n"
+        "    sys.exit(3)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(path)], capture_output=True, text=True, timeout=30
+    )
+    assert done.returncode == 3, done.stderr[-2000:]
+    field_name, reason = done.stdout.strip().split(" | ", 1)
+    assert field_name == "space"
+    assert reason.startswith(f"file {path}: uses a YAML anchor or alias"), reason
+    assert len(done.stdout) < 400
+
+
+def test_the_size_limit_is_checked_before_parsing(tmp_path: Path) -> None:
+    big = tmp_path / "big.yaml"
+    with big.open("w") as stream:  # 10 MB of one description: never parsed, never echoed
+        stream.write("parameters:\n  - {name: kd, lower: 0, upper: 1, description: '")
+        stream.write("x" * 10_000_000 + "'}\n")
+    with pytest.raises(SettingError) as err:
+        load_space(big)
+    size = big.stat().st_size
+    assert err.value.field == "space"
+    assert err.value.reason.startswith(f"file {big}: is {size} bytes, more than the limit")
+    assert len(str(err.value)) < 300
+    with pytest.raises(SettingError) as err:  # inline text too
+        load_space('{"parameters": "' + "x" * MAX_SPACE_BYTES + '"}')
+    assert err.value.field == "space" and "more than the limit" in err.value.reason
+
+
+def test_a_device_that_never_ends_is_cut_at_the_limit() -> None:
+    with pytest.raises(SettingError) as err:
+        load_space("/dev/zero")
+    assert err.value.reason == f"file /dev/zero: is more than the limit of {MAX_SPACE_BYTES} " + (
+        "bytes (1 MiB)"
+    )
+
+
+def test_long_values_are_quoted_shortened_naming_file_and_field(tmp_path: Path) -> None:
+    text = "y" * (MAX_SPACE_BYTES - 200)  # a file just under the limit
+    cases = {
+        "space.kd.description": f"parameters:\n  - {{name: kd, lower: 0, upper: 1, "
+        f"description: '{text}'}}\n",
+        "space.kd.lower": f"parameters:\n  - {{name: kd, lower: '{text}', upper: 1}}\n",
+        "space.parameters[0].name": f"parameters:\n  - {{name: '{text}', lower: 0, upper: 1}}\n",
+        "space.name": f"name: '{text}'\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n",
+        "space.value_range": f"value_range: ['{text}']\nparameters: []\n",
+    }
+    for field, body in cases.items():
+        path = tmp_path / "long.yaml"
+        path.write_text(body)
+        with pytest.raises(SettingError) as err:
+            load_space(path)
+        assert err.value.field == field, err.value
+        assert err.value.reason.startswith(f"file {path}: "), err.value.reason[:200]
+        assert len(str(err.value)) < 400, str(err.value)[:400]
+
+
+@pytest.mark.parametrize(
+    ("content", "detail"),
+    [
+        (bytes(range(256)) * 4, "not UTF-8 text"),
+        (b"\x00\x01\x02binary", "binary data"),
+        (b"- a list\n- of things\n", "got ['a list', 'of things']"),
+        (b"just text", "got 'just text'"),
+        (b"", "got None"),
+    ],
+)
+def test_non_mappings_are_reported_as_such(tmp_path: Path, content: bytes, detail: str) -> None:
+    path = tmp_path / "odd.yaml"
+    path.write_bytes(content)
+    with pytest.raises(SettingError) as err:
+        load_space(path)
+    assert err.value.field == "space"
+    assert err.value.reason.startswith(f"file {path}: is not a YAML mapping"), err.value.reason
+    assert detail in err.value.reason
+
+
+def test_deep_nesting_is_refused_before_the_parser_slows_down(tmp_path: Path) -> None:
+    path = tmp_path / "deep.yaml"
+    path.write_text("parameters: " + "[" * 500_000)  # libyaml takes minutes on this whole
+    with pytest.raises(SettingError) as err:
+        load_space(path)
+    assert err.value.field == "space" and "nested more than" in err.value.reason
