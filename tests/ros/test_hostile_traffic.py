@@ -1,18 +1,22 @@
-"""Floods of malformed and oversized messages: counters exact, log lines and bag size bounded."""
+"""Hostile peers: floods of malformed, oversized and forged well-formed messages. Counters exact,
+log lines, node state and bag size bounded, no episode for a forged candidate."""
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from localpbo_ros.evaluator import EvaluatorNode
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.recorder_node import PARAMS as RECORDER_PARAMS
 from localpbo_ros.recorder_node import RecorderNode
+from localpbo_ros.sim_node import SimNode
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from localpbo_msgs_py import DuelRequest, EpisodeResult, Incumbent, RunConfig, Status
+from localpbo_msgs_py import CandidateMsg, DuelRequest, EpisodeResult, Incumbent, RunConfig, Status
 from localpbo_msgs_py._validate import MAX_ID, MAX_KEYVALUES, MAX_TEXT, MAX_THETA_LEN
 from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.limits import MAX_MESSAGE_BYTES, max_message_bytes
@@ -55,6 +59,17 @@ def flood(ros: Any, node: Any, sends: list[tuple[Any, Any]], total: Any) -> None
         for spec, msg in batch:
             ros.publish(spec, msg)
         assert ros.spin_until(lambda t=target: total(node) == t, 20)
+
+
+def settle(ros: Any, progress: Any, quiet_s: float = 0.2, timeout: float = 20.0) -> None:
+    """Spin until ``progress()`` has not changed for ``quiet_s`` seconds."""
+    end = time.monotonic() + timeout
+    last, since = progress(), time.monotonic()
+    while time.monotonic() < end and time.monotonic() - since < quiet_s:
+        ros.spin_for(0.02)
+        now = progress()
+        if now != last:
+            last, since = now, time.monotonic()
 
 
 def warning_lines(text: str, marker: str) -> list[str]:
@@ -195,3 +210,132 @@ def test_message_bounds_cover_the_largest_legitimate_messages(spec: TopicSpec) -
     size = len(serialize_message(largest_valid_message(spec)))
     assert size <= max_message_bytes(spec) <= MAX_MESSAGE_BYTES
     assert RECORDER_DEFAULTS["max_message_bytes"] == 2 * MAX_MESSAGE_BYTES
+
+
+# ---------------------------------------------------------------------- forged ids
+FORGED_IDS = (8, 9, 100, 3558, 10**7, 10**7 + 1, 2**40, MAX_ID)
+"""Well-formed ids outside a budget-8 run (ids 0..7)."""
+
+
+def cheap_config(run_id: str = "t1", budget: int = 8) -> RunConfig:
+    return run_config(run_id=run_id, algorithm="sobol", task="hartmann6", budget=budget)
+
+
+def test_sim_node_runs_no_episode_for_forged_candidate_ids(ros: Any) -> None:
+    calls: list[int] = []
+
+    def evaluator(config: RunConfig, cid: int, theta: Any) -> float:
+        calls.append(cid)
+        return float(cid)
+
+    sim = ros.add(SimNode(context=ros.ctx, evaluator=evaluator))
+    sim.warnings.clock = FrozenClock()
+    config = cheap_config()
+    ros.publish(RUN_CONFIG, config.encode())
+    assert ros.spin_until(lambda: sim.run_id == "t1", 5)
+    results = ros.collect(EPISODE_RESULT)
+    theta = tuple(0.5 * (lo + hi) for lo, hi in zip(config.lower, config.upper, strict=True))
+    forged = [(CANDIDATE, CandidateMsg("t1", i, theta).encode()) for i in FORGED_IDS] * 25
+    legit = [(CANDIDATE, CandidateMsg("t1", i, theta).encode()) for i in range(8)]
+    flood(ros, sim, forged + legit, lambda n: dropped(n) + n.counters["episodes"])
+    assert sorted(calls) == list(range(8))  # not one episode for a forged id
+    assert sim.counters["dropped_id_out_of_range"] == len(forged)
+    assert sim.counters["episodes"] == 8
+    assert ros.spin_until(lambda: len(results) == 8, 5)
+    assert len(sim._thetas) == len(sim._results) == 8
+    # a repeat of a run's candidate is served from the stored result
+    flood(ros, sim, legit[:1], lambda n: n.counters["results_repeated"])
+    assert len(calls) == 8
+
+
+def forged_traffic(rng: Any, n: int) -> list[tuple[TopicSpec, Any]]:
+    """``n`` well-formed results and duel requests of run t1 with ids drawn over 0..10**7."""
+    sends: list[tuple[TopicSpec, Any]] = []
+    for _ in range(n):
+        a, b, d = (int(v) for v in rng.integers(0, 10**7, size=3))
+        if rng.random() < 0.5:
+            sends.append((EPISODE_RESULT, EpisodeResult.ok("t1", a, float(rng.normal())).encode()))
+        else:
+            sends.append((DUEL_REQUEST, DuelRequest("t1", d, a, b if b != a else a + 1).encode()))
+    return sends
+
+
+def test_oracle_state_stays_bounded_under_forged_ids(ros: Any) -> None:
+    """A flood of forged results and requests (ids up to 10**7, some inside the run's range)
+    leaves the oracle's dictionaries within the run's range and the pending window."""
+    import numpy as np
+
+    oracle = ros.add(OracleNode(context=ros.ctx, overrides={"max_pending": 16}))
+    oracle.warnings.clock = FrozenClock()
+    ros.publish(RUN_CONFIG, cheap_config().encode())
+    assert ros.spin_until(lambda: oracle.run_id == "t1", 5)
+    rng = np.random.default_rng(7)
+    sends = forged_traffic(rng, 3000)
+    # forged ids inside the range: at most one entry per id of the run
+    for i in range(400):
+        a, b = int(rng.integers(0, 8)), int(rng.integers(0, 8))
+        req = DuelRequest("t1", int(rng.integers(0, 64)), a, b if b != a else (a + 1) % 8)
+        sends.append((DUEL_REQUEST, req.encode()))
+        sends.append((EPISODE_RESULT, EpisodeResult.ok("t1", i % 8, float(i % 8)).encode()))
+
+    def out_of_range(spec: TopicSpec, msg: Any) -> bool:
+        if spec is EPISODE_RESULT:
+            res = EpisodeResult.decode(msg)
+            return isinstance(res, EpisodeResult) and not res.candidate_id < 8
+        req = DuelRequest.decode(msg)
+        assert isinstance(req, DuelRequest)
+        return not (req.duel_id < 16 and req.first_id < 8 and req.second_id < 8)
+
+    for start in range(0, len(sends), 50):
+        for spec, msg in sends[start : start + 50]:
+            ros.publish(spec, msg)
+        settle(ros, lambda: sum(oracle.counters.values()))
+    expected = sum(out_of_range(spec, msg) for spec, msg in sends)
+    assert expected >= 3000
+    assert oracle.counters["dropped_id_out_of_range"] == expected
+    assert len(oracle._results) <= oracle.ids.candidates == 8
+    assert len(oracle._answered) <= oracle.ids.duels == 16
+    assert len(oracle._waiting) <= 16
+
+
+class IdleEvaluator(EvaluatorNode):
+    """An evaluator that never evaluates (its queue fills)."""
+
+    def adopt(self, config: RunConfig) -> None:
+        pass
+
+
+def test_evaluator_queue_is_bounded_and_repeats_are_counted(ros: Any) -> None:
+    node = ros.add(IdleEvaluator("idle_node", [], context=ros.ctx, overrides={"max_pending": 3}))
+    node.warnings.clock = FrozenClock()
+    config = cheap_config(budget=20)
+    ros.publish(RUN_CONFIG, config.encode())
+    assert ros.spin_until(lambda: node.run_id == "t1", 5)
+    theta = tuple(config.lower)
+    other = tuple(config.upper)
+    sends = [(CANDIDATE, CandidateMsg("t1", i, theta).encode()) for i in range(6)]
+    sends += [(CANDIDATE, CandidateMsg("t1", 1, theta).encode())]  # queued: a repeat
+    sends += [(CANDIDATE, CandidateMsg("t1", 2, other).encode())]  # another θ for id 2
+    sends += [(CANDIDATE, CandidateMsg("t1", 30, theta).encode())]  # outside the range
+    sends += [(CANDIDATE, CandidateMsg("t1", 0, theta, "someone.else").encode())]
+
+    def handled(n: Any) -> int:
+        c = n.counters
+        return dropped(n) + c["candidates_repeated"] + c["candidates_for_others"] + len(n._queue)
+
+    flood(ros, node, sends, handled)
+    assert [c.candidate_id for c in node._queue] == [0, 1, 2]
+    c = node.counters
+    assert c["dropped_buffer_full"] == 3
+    assert c["candidates_repeated"] == 1
+    assert c["dropped_conflicting_candidate"] == 1
+    assert c["dropped_id_out_of_range"] == 1
+    assert c["candidates_for_others"] == 1
+    # a refused run fails every candidate at once, none is queued
+    node._queue.clear()
+    node.refusal = lambda: "target refused"  # type: ignore[method-assign]
+    results = ros.collect(EPISODE_RESULT)
+    flood(ros, node, [(CANDIDATE, CandidateMsg("t1", 7, theta).encode())], lambda n: len(results))
+    decoded = EpisodeResult.decode(results[0])
+    assert isinstance(decoded, EpisodeResult) and decoded.error == "target refused"
+    assert not node._queue

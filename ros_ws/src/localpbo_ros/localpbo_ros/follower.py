@@ -5,6 +5,10 @@ They take everything about the run (task, its options, seed, noise) from the lat
 the latest run whose config they received (a config with a new run id switches them over and
 clears their state); otherwise only that run's. Messages that arrive before the config are
 kept (at most ``max_pending``) and handled once it is known.
+
+Ids are checked against the run's range (:mod:`localpbo_ros.admission`: candidates
+``0 .. budget - 1`` unless the config says otherwise) before anything is stored or
+evaluated; a message outside it is dropped and counted (``dropped_id_out_of_range``).
 """
 
 from __future__ import annotations
@@ -15,18 +19,23 @@ from typing import Any
 
 from rclpy.context import Context
 
-from localpbo_msgs_py import CandidateMsg, DecodeError, RunConfig
+from localpbo_msgs_py import CandidateMsg, DecodeError, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import RUN_CONFIG
+from localpbo_ros.admission import OUT_OF_RANGE, IdRange, id_range
 from localpbo_ros.base import SuiteNode
 from localpbo_ros.params import Param
 
 FOLLOWER_PARAMS = [
-    Param("run_id", "", "Only serve this run; empty = the first run config received."),
+    Param(
+        "run_id",
+        "",
+        "Only serve this run; empty = the latest run config received (a new run id switches over).",
+    ),
     Param(
         "max_pending",
         1000,
-        "Messages kept while waiting for the run config, and duels "
-        "kept while waiting for episode results.",
+        "Messages kept while waiting for the run config; duels kept while waiting for "
+        "episode results; candidates queued for evaluation.",
         int_range=(1, 1_000_000),
     ),
 ]
@@ -48,6 +57,7 @@ class FollowerNode(SuiteNode, abc.ABC):
             name, FOLLOWER_PARAMS + params, context=context, overrides=overrides, cli_args=cli_args
         )
         self.config: RunConfig | None = None
+        self.ids = IdRange(0, 0)
         self._early: list[tuple[Callable[[Any], None], Any]] = []
         self.subscribe(RUN_CONFIG, self._on_config)
         self.state = "waiting"
@@ -76,6 +86,7 @@ class FollowerNode(SuiteNode, abc.ABC):
             self.config = None
             self.reset()
         try:
+            ids = id_range(decoded)
             self.adopt(decoded)
         except Exception as exc:  # the config names a task or option this node cannot build
             self.state = "failed"
@@ -83,6 +94,7 @@ class FollowerNode(SuiteNode, abc.ABC):
             self.publish_status(2, str(exc))
             return
         self.config = decoded
+        self.ids = ids
         self.status_run_id = decoded.run_id
         self.state = "running"
         early, self._early = self._early, []
@@ -122,6 +134,11 @@ class FollowerNode(SuiteNode, abc.ABC):
         if isinstance(cand, DecodeError):
             self.drop_decode(cand)
             return None
+        if not self.ids.candidate(cand.candidate_id):
+            self.drop(
+                OUT_OF_RANGE, f"candidate {cand.candidate_id} (run has {self.ids.candidates})"
+            )
+            return None
         return cand
 
     def candidate_for(self, msg: object, worker_id: str) -> CandidateMsg | None:
@@ -132,3 +149,29 @@ class FollowerNode(SuiteNode, abc.ABC):
             self.counters["candidates_for_others"] += 1
             return None
         return cand
+
+    def result(self, msg: object) -> EpisodeResult | None:
+        """Decode an episode result of the served run for one of its candidates; None (dropped
+        and counted) otherwise. Call only once the run config is known."""
+        assert self.config is not None
+        res = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(res, DecodeError):
+            self.drop_decode(res)
+            return None
+        if not self.ids.candidate(res.candidate_id):
+            self.drop(OUT_OF_RANGE, f"result of candidate {res.candidate_id}")
+            return None
+        return res
+
+    def request(self, msg: object) -> DuelRequest | None:
+        """Decode a duel request of the served run within its id range; None (dropped and
+        counted) otherwise. Call only once the run config is known."""
+        assert self.config is not None
+        req = DuelRequest.decode(msg, expected_run_id=self.config.run_id)
+        if isinstance(req, DecodeError):
+            self.drop_decode(req)
+            return None
+        if not self.ids.duel(req.duel_id, req.first_id, req.second_id):
+            self.drop(OUT_OF_RANGE, f"duel {req.duel_id} ({req.first_id} vs {req.second_id})")
+            return None
+        return req

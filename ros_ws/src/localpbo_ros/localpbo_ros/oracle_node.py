@@ -14,6 +14,10 @@ its noisy difference is below that fraction of the value range
 (:meth:`~localpbo_core.problems.DuelOracle.judge`: the same per-duel draw as the core's
 loop). An answer is stored and re-published for a repeated request. A failed episode result
 fails the duels waiting on it (and is then forgotten, so a retry waits for the fresh result).
+
+Bounded under forged traffic: results are kept only for candidate ids of the run's range,
+answers only for its duel ids (:mod:`localpbo_ros.admission`), and at most ``max_pending``
+duels wait for results; everything else is dropped and counted (``dropped_<reason>``).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from typing import Any, NoReturn
 from rclpy.context import Context
 
 from localpbo_core.problems import DuelOracle
-from localpbo_msgs_py import DecodeError, DuelOutcome, DuelRequest, EpisodeResult, RunConfig
+from localpbo_msgs_py import DuelOutcome, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.records import EpisodeStatus
 from localpbo_msgs_py.topics import DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
 from localpbo_ros.driver import problem_of, settings_of
@@ -87,17 +91,12 @@ class OracleNode(FollowerNode):
             indifference=settings.indifference,
         )
 
-    def _reason(self, err: DecodeError) -> str:
-        return err.reason.value
-
     # ------------------------------------------------------------------ callbacks
     def _on_result(self, msg: object) -> None:
         if self.hold(self._on_result, msg):
             return
-        assert self.config is not None
-        res = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
-        if isinstance(res, DecodeError):
-            self.drop(self._reason(res), str(res))
+        res = self.result(msg)
+        if res is None:
             return
         known = self._results.get(res.candidate_id)
         if (
@@ -120,10 +119,8 @@ class OracleNode(FollowerNode):
     def _on_request(self, msg: object) -> None:
         if self.hold(self._on_request, msg):
             return
-        assert self.config is not None
-        req = DuelRequest.decode(msg, expected_run_id=self.config.run_id)
-        if isinstance(req, DecodeError):
-            self.drop(self._reason(req), str(req))
+        req = self.request(msg)
+        if req is None:
             return
         done = self._answered.get(req.duel_id)
         if done is not None:
