@@ -1,5 +1,12 @@
 """Shared node plumbing: drop counters, throttled warnings, the status topic, suite
-publishers/subscriptions, and the parameter services."""
+publishers/subscriptions, and the parameter services.
+
+Time: a node's timers (status heartbeat, the optimizer's and bridge's ticks) run on the steady
+clock, so ``use_sim_time`` (rclpy's own parameter, the only writable one; at start or set while
+running) is honoured without stopping them: with it the node's ROS clock, and so the status
+stamps, follow ``/clock``, while heartbeats, timeouts and re-publishing keep real time whether
+or not a ``/clock`` publisher exists.
+"""
 
 from __future__ import annotations
 
@@ -8,13 +15,16 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+from rclpy.callback_groups import CallbackGroup
+from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.timer import Timer
 
 from localpbo_msgs_py import DecodeError, Status
 from localpbo_msgs_py.topics import STATUS, TopicSpec
-from localpbo_ros.params import Param, declare
+from localpbo_ros.params import Param, declare, refuse_unknown
 
 NO_RUN = "none"
 """Run id reported in status messages before a node knows its run."""
@@ -57,7 +67,9 @@ class SuiteNode(Node):
     """A node of the suite: declared parameters, counters and a status publisher.
 
     The node serves the standard parameter services (``ros2 param list/get/describe/set``);
-    every declared parameter is read-only, so a ``set`` is refused.
+    every declared parameter is read-only, so a ``set`` is refused. A value given for a
+    parameter the node does not have is refused at start (:func:`~localpbo_ros.params.
+    refuse_unknown`). Timers run on the steady clock (see the module docstring).
 
     Args:
         name: node name (the executable's name; ``--ros-args -r __node:=other`` renames it).
@@ -89,12 +101,29 @@ class SuiteNode(Node):
             start_parameter_services=True,
         )
         self.settings = declare(self, params)
+        given = getattr(self, "_parameter_overrides", {})  # rclpy keeps no public accessor
+        known = self.list_parameters([], 0).names
+        refuse_unknown(self.get_name(), given, known)
         self.counters: Counter[str] = Counter()
         self.warnings = WarningThrottle(warn_period_s)
         self.state = "starting"
         self.status_run_id = NO_RUN
         self._status_pub = self.create_publisher(STATUS.msg_type, STATUS.name, STATUS.qos)
         self.create_timer(status_period_s, self.publish_status)
+
+    def create_timer(
+        self,
+        timer_period_sec: float,
+        callback: Callable[..., Any],
+        callback_group: CallbackGroup | None = None,
+        clock: Clock | None = None,
+        autostart: bool = True,
+    ) -> Timer:
+        """rclpy's ``create_timer`` on the steady clock unless ``clock`` is given."""
+        steady = Clock(clock_type=ClockType.STEADY_TIME) if clock is None else clock
+        return super().create_timer(
+            timer_period_sec, callback, callback_group, steady, autostart=autostart
+        )
 
     def publisher(self, spec: TopicSpec) -> Any:
         """A publisher on a suite topic with its QoS."""

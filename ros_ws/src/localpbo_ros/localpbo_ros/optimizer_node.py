@@ -223,6 +223,8 @@ PARAMS = [
 
 TICK_S = 0.05
 """Period of the start / timeout / re-publish check."""
+WAIT_NOTE_S = 1.0
+"""Seconds of waiting for subscribers/workers before the optimizer says what it waits for."""
 
 PARAMETER_OF_SETTING = {
     "algorithm": "algorithm",
@@ -338,6 +340,7 @@ class OptimizerNode(SuiteNode):
         self._deadline = float("inf")
         self._last_publish = 0.0
         self._started = False
+        self._waiting_since = time.monotonic()
         self._decision_s: dict[int, float] = {}  # duel id -> decision time of its ask
         self._answered_at = 0.0  # when the answer that completed the last ask arrived
         self._cpu0 = 0.0
@@ -372,12 +375,15 @@ class OptimizerNode(SuiteNode):
         now = self._now()
         if not self._started:
             need = self.settings["min_subscribers"]
-            if (
-                self._pub_candidate.get_subscription_count() >= need
-                and self._pub_request.get_subscription_count() >= need
-                and len(self.pool.live(now)) >= self.settings["min_workers"]
-            ):
+            seen = (
+                self._pub_candidate.get_subscription_count(),
+                self._pub_request.get_subscription_count(),
+                len(self.pool.live(now)),
+            )
+            if seen[0] >= need and seen[1] >= need and seen[2] >= self.settings["min_workers"]:
                 self._start()
+            elif now - self._waiting_since >= WAIT_NOTE_S:
+                self._note_waiting(*seen)
             return
         if self.pool.outstanding() and any(
             w not in self.pool.live(now) for w in self.pool.outstanding().values()
@@ -394,6 +400,21 @@ class OptimizerNode(SuiteNode):
             and now - self._last_publish >= self.settings["republish_period_s"]
         ):
             self._publish_pending()
+
+    def _note_waiting(self, candidates: int, requests: int, workers: int) -> None:
+        """Say (INFO, at most once per ``warn_period_s``) what the start waits for."""
+        if self.warnings.admit("waiting_to_start") is None:
+            return
+        need = self.settings["min_subscribers"]
+        text = (
+            f"waiting to start: {CANDIDATE.name} has {candidates} of {need} subscribers, "
+            f"{DUEL_REQUEST.name} {requests} of {need} (min_subscribers)"
+        )
+        if self.settings["min_workers"]:
+            text += (
+                f"; {workers} of {self.settings['min_workers']} pool workers heard (min_workers)"
+            )
+        self.get_logger().info(text)
 
     def _start(self) -> None:
         self._started = True

@@ -3,13 +3,16 @@
 Every node setting is a read-only parameter with a description and, for numbers, a range
 (``IntegerRange``/``FloatingPointRange``) that rclpy enforces on override; choices and JSON
 texts are checked here. Any problem raises :class:`ParameterError` carrying the parameter's
-name and a :class:`ParameterReason`.
+name and a :class:`ParameterReason`; so does a value given for a parameter the node does not
+have (:func:`refuse_unknown`: a typo such as ``-p budgte:=30`` is refused with the nearest
+names, ROS's own parameters such as ``use_sim_time`` are declared by rclpy and pass).
 """
 
 from __future__ import annotations
 
+import difflib
 import json
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
@@ -35,6 +38,8 @@ class ParameterReason(StrEnum):
     INVALID = "invalid"
     """Refused by the node's own check (a run id, an option the algorithm does not take, a
     directory that does not exist)."""
+    UNKNOWN = "unknown"
+    """A value for a parameter the node does not declare (a typo, another node's parameter)."""
 
 
 class ParameterError(ValueError):
@@ -44,13 +49,17 @@ class ParameterError(ValueError):
         name: the parameter.
         reason: the kind of problem.
         problem: what is wrong, for people (the message is
-            ``invalid parameter '<name>': <problem>``).
+            ``invalid parameter '<name>': <problem>``, or ``unknown parameter '<name>'
+            <problem>`` for :attr:`ParameterReason.UNKNOWN`).
     """
 
     def __init__(
         self, name: str, problem: str, reason: ParameterReason = ParameterReason.INVALID
     ) -> None:
-        super().__init__(f"invalid parameter '{name}': {problem}")
+        if reason is ParameterReason.UNKNOWN:
+            super().__init__(f"unknown parameter '{name}' {problem}")
+        else:
+            super().__init__(f"invalid parameter '{name}': {problem}")
         self.name = name
         self.reason = reason
         self.problem = problem
@@ -136,3 +145,24 @@ def declare(node: Node, params: Sequence[Param]) -> dict[str, Any]:
             raise ParameterError(p.name, f"{type(exc).__name__}: {exc}") from None
         values[p.name] = p.check(node.get_parameter(p.name).value)
     return values
+
+
+def refuse_unknown(node_name: str, given: Iterable[str], known: Iterable[str]) -> None:
+    """Refuse the first name in ``given`` (the values the node received: ``-p``, parameter
+    files, constructor overrides) that is not in ``known`` (what the node declares, rclpy's
+    own ``use_sim_time`` included); the message suggests the nearest known names.
+
+    Raises:
+        ParameterError: ``unknown parameter 'budgte' (did you mean 'budget'?)``, reason
+            :attr:`ParameterReason.UNKNOWN`.
+    """
+    names = sorted(set(known))
+    for name in sorted(set(given)):
+        if name in names:
+            continue
+        near = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+        if near:
+            hint = f"(did you mean {' or '.join(repr(n) for n in near)}?)"
+        else:
+            hint = f"({node_name} takes: {', '.join(names)})"
+        raise ParameterError(name[:100], hint, ParameterReason.UNKNOWN)
