@@ -9,6 +9,12 @@ at most ``chunk_size`` bytes, and every ``flush_interval_s`` the open chunk is c
 file flushed to the OS (by a background thread, so even an idle writer flushes), so SIGKILL
 loses at most the last ``flush_interval_s`` of messages; the unfinished file is read with
 :func:`read_messages`, which reads sequentially and stops cleanly at the truncation.
+
+Foreign traffic (messages on a suite topic that are not the recorded run's: another run id,
+malformed, ids outside the run's range) is kept apart, under ``/localpbo/foreign/<topic>``
+(:func:`foreign_topic`), so the run's own topics hold only the run. The recorder's accounting
+(what it wrote and what it did not, by reason; whether the bag reached its cap) is one MCAP
+metadata record, ``localpbo/recorder``, written on close (:attr:`BagSummary.recorder`).
 """
 
 from __future__ import annotations
@@ -19,13 +25,13 @@ import struct
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
 
 from mcap.exceptions import McapError
-from mcap.records import Channel, Footer, Header, Message, Schema
+from mcap.records import Channel, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 from rclpy.qos import QoSProfile
@@ -45,6 +51,19 @@ RECORD_SIZE_LIMIT = 256 * 2**20
 MESSAGE_OVERHEAD = 31 + 16
 """Bytes an MCAP message costs besides its data: the record (opcode, length, channel,
 sequence, two times) and its message-index entry."""
+SUITE_PREFIX = "/localpbo/"
+FOREIGN_PREFIX = "/localpbo/foreign/"
+"""Foreign traffic of a suite topic ``/localpbo/<name>`` is recorded on
+``/localpbo/foreign/<name>``."""
+RECORDER_METADATA = "localpbo/recorder"
+"""Name of the metadata record holding the recorder's accounting."""
+
+
+def foreign_topic(topic: str) -> str:
+    """Where foreign traffic of ``topic`` goes: ``/localpbo/x`` -> ``/localpbo/foreign/x``."""
+    if not topic.startswith(SUITE_PREFIX) or topic.startswith(FOREIGN_PREFIX):
+        raise ValueError(f"{topic} is not a suite topic")
+    return FOREIGN_PREFIX + topic[len(SUITE_PREFIX) :]
 
 
 def message_class(type_name: str) -> type:
@@ -102,6 +121,7 @@ class BagWriter:
         self._position = 0
         self._last_flush = time.monotonic()
         self._closed = False
+        self._hooks: list[Callable[[BagWriter], None]] = []
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._flush_locked()
@@ -210,6 +230,18 @@ class BagWriter:
             if time.monotonic() - self._last_flush >= self._flush_interval:
                 self._flush_locked()
 
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """Append one MCAP metadata record (a name and string key/values)."""
+        with self._lock:
+            self._check_open()
+            self._writer.add_metadata(name, dict(data))
+            self._position = self._stream.tell()
+            self._unflushed = 0
+
+    def before_close(self, hook: Callable[[BagWriter], None]) -> None:
+        """Call ``hook(self)`` when :meth:`close` begins (it may still write), once."""
+        self._hooks.append(hook)
+
     # ---------------------------------------------------------------- flushing
     def flush(self) -> None:
         """Close the open chunk and push everything written so far to the OS."""
@@ -248,6 +280,10 @@ class BagWriter:
 
     def close(self) -> None:
         """Write the summary section and footer; idempotent."""
+        hooks, self._hooks = self._hooks, []
+        for hook in hooks:
+            if not self._closed:
+                hook(self)
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
@@ -303,6 +339,8 @@ class _StreamState:
     channels: dict[int, Channel] = field(default_factory=dict)
     complete: bool = False
     error: str | None = None
+    whole_bytes: int = 0
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
 
 
 def _iter_records(path: Path, state: _StreamState) -> Iterator[Message]:
@@ -311,6 +349,7 @@ def _iter_records(path: Path, state: _StreamState) -> Iterator[Message]:
         reader = StreamReader(stream, record_size_limit=RECORD_SIZE_LIMIT)
         try:
             for record in reader.records:
+                state.whole_bytes = stream.tell()  # the end of the last whole record read
                 if isinstance(record, Header):
                     state.profile = record.profile
                 elif isinstance(record, Schema):
@@ -319,6 +358,8 @@ def _iter_records(path: Path, state: _StreamState) -> Iterator[Message]:
                     state.channels[record.id] = record
                 elif isinstance(record, Message):
                     yield record
+                elif isinstance(record, Metadata):
+                    state.metadata[record.name] = dict(record.metadata)
                 elif isinstance(record, Footer):
                     state.complete = True
         except (McapError, struct.error, EOFError, ValueError, UnicodeDecodeError) as exc:
@@ -387,6 +428,14 @@ class BagSummary:
     end_ns: int | None
     complete: bool
     truncation: str | None
+    recorder: dict[str, str] = field(default_factory=dict)
+    """The recorder's accounting (metadata record ``localpbo/recorder``; empty when the
+    recorder was killed or the bag was written otherwise): ``max_bag_bytes``,
+    ``max_foreign_bytes``, ``bag_full`` (``yes``/``no``) and ``count.<name>`` entries."""
+    whole_bytes: int | None = None
+    """Where the last whole record ends (None: not measured)."""
+    size_bytes: int = 0
+    """The file's size."""
 
     @property
     def duration_s(self) -> float:
@@ -397,24 +446,71 @@ class BagSummary:
 
     def format(self) -> str:
         """Human-readable multi-line text."""
-        whole = "yes" if self.complete else f"no (unfinished; {self.truncation})"
+        if self.complete:
+            whole = "yes (closed cleanly)"
+        elif self.whole_bytes is not None and self.whole_bytes < self.size_bytes:
+            whole = (
+                f"no: the file ends early, cut inside a record at byte {self.whole_bytes} of "
+                f"{self.size_bytes} (the messages before it are read)"
+            )
+        else:
+            whole = "no: unfinished (no footer: the writer was stopped before closing it)"
         lines = [
             f"file:      {self.path}",
-            f"complete:  {whole}",
+            f"file complete: {whole}",
             f"messages:  {self.message_count}",
             f"duration:  {self.duration_s:.3f} s",
         ]
         if self.start_ns is not None:
             lines.append(f"start/end: {self.start_ns} .. {self.end_ns} ns")
+        lines.extend(self.recorder_lines())
         lines.append("topics:")
         width = max((len(t.topic) for t in self.topics), default=0)
         for t in self.topics:
             lines.append(f"  {t.topic:<{width}}  {t.type_name:<40} {t.count:>8}")
         return "\n".join(lines)
 
+    def recorder_counts(self) -> dict[str, int]:
+        """The recorder's counters (``count.<name>`` of :attr:`recorder`)."""
+        return {
+            k.removeprefix("count."): int(v)
+            for k, v in self.recorder.items()
+            if k.startswith("count.") and v.isdigit()
+        }
+
+    def recorder_lines(self) -> list[str]:
+        """What the recorder wrote and did not write (empty without its record)."""
+        if not self.recorder:
+            return []
+        counts = self.recorder_counts()
+        not_written = {
+            k.removeprefix("dropped_"): v
+            for k, v in counts.items()
+            if k.startswith("dropped_") and v
+        }
+        lines = [
+            f"recorder:  {counts.get('recorded', 0)} run messages, "
+            f"{counts.get('recorded_foreign', 0)} foreign messages recorded"
+        ]
+        if not_written:
+            shown = ", ".join(f"{k} {v}" for k, v in sorted(not_written.items()))
+            lines.append(f"not recorded: {sum(not_written.values())} ({shown})")
+        foreign = {
+            k.removeprefix("foreign_"): v for k, v in counts.items() if k.startswith("foreign_")
+        }
+        if foreign:
+            shown = ", ".join(f"{k} {v}" for k, v in sorted(foreign.items()))
+            lines.append(f"foreign:   {sum(foreign.values())} messages ({shown})")
+        if self.recorder.get("bag_full") == "yes":
+            cap = self.recorder.get("max_bag_bytes", "?")
+            lost = counts.get("dropped_bag_full", 0)
+            lines.append(f"capped at {cap} bytes: {lost} messages not recorded")
+        return lines
+
 
 def summarize(path: str | os.PathLike[str]) -> BagSummary:
     """Count messages per topic and the time span by reading the file sequentially."""
+    path_size = os.path.getsize(path)
     state = _StreamState()
     counts: dict[int, int] = {}
     start: int | None = None
@@ -438,4 +534,15 @@ def summarize(path: str | os.PathLike[str]) -> BagSummary:
                 info.metadata.get(QOS_METADATA_KEY, ""),
             )
         )
-    return BagSummary(str(path), tuple(topics), total, start, end, state.complete, state.error)
+    summary = BagSummary(
+        str(path),
+        tuple(topics),
+        total,
+        start,
+        end,
+        state.complete,
+        state.error,
+        state.metadata.get(RECORDER_METADATA, {}),
+    )
+    summary = replace(summary, whole_bytes=state.whole_bytes, size_bytes=path_size)
+    return summary

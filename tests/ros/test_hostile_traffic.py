@@ -124,40 +124,61 @@ def test_oracle_flood_counts_exactly_and_logs_once_per_reason(ros: Any, capfd: A
     assert status.counters["dropped_too_large"] == n_each
 
 
-def theta_message(n: int) -> Float64MultiArray:
+def theta_message(n: int, run: str = "t1", candidate: int = 1) -> Float64MultiArray:
     msg = Float64MultiArray()
-    label = "kind=candidate;run=t1;candidate=1"
+    label = f"kind=candidate;run={run};candidate={candidate}"
     msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
     msg.data = [0.5] * n
     return msg
 
 
+def wide_config(dim: int, run_id: str = "t1", budget: int = 50) -> RunConfig:
+    """A run config whose θ has ``dim`` coordinates in [0, 1] (the recorder's triage needs
+    only its id, box and budget)."""
+    return RunConfig(run_id, "sobol", "task", dim, (0.0,) * dim, (1.0,) * dim, 0, budget)
+
+
+def recorder_handled(node: Any) -> int:
+    c = node.counters
+    return len(node._held) + sum(
+        c[k]
+        for k in (
+            "recorded",
+            "recorded_foreign",
+            "dropped_oversized",
+            "dropped_bag_full",
+            "dropped_foreign_quota",
+        )
+    )
+
+
+def start_recorder(ros: Any, path: Any, topics: list[TopicSpec], **overrides: Any) -> Any:
+    recorder = ros.add(
+        RecorderNode(context=ros.ctx, overrides={"path": str(path), **overrides}, topics=topics)
+    )
+    recorder.warnings.clock = FrozenClock()
+    for spec in topics:
+        ros.publisher(spec)
+    assert ros.spin_until(lambda: recorder.matched([t.name for t in topics]), 5)
+    return recorder
+
+
 def test_recorder_drops_oversized_and_caps_the_bag(ros: Any, tmp_path: Any, capfd: Any) -> None:
     path = tmp_path / "flood.mcap"
     cap = 200_000
-    recorder = ros.add(
-        RecorderNode(
-            context=ros.ctx,
-            overrides={"path": str(path), "max_message_bytes": 20_000, "max_bag_bytes": cap},
-            topics=[CANDIDATE],
-        )
+    recorder = start_recorder(
+        ros, path, [RUN_CONFIG, CANDIDATE], max_message_bytes=20_000, max_bag_bytes=cap
     )
-    recorder.warnings.clock = FrozenClock()
-    ros.publisher(CANDIDATE)
-    assert ros.spin_until(lambda: recorder.matched([CANDIDATE.name]), 5)
-
-    def handled(node: Any) -> int:
-        c = node.counters
-        return c["recorded"] + c["dropped_oversized"] + c["dropped_bag_full"]
-
+    ros.publish(RUN_CONFIG, wide_config(1000).encode())
+    assert ros.spin_until(lambda: recorder.counters["recorded"] == 1, 5)
     legit = theta_message(1000)  # 8 kB: fits the message limit
     huge = theta_message(10_000)  # 80 kB: above it
     sends = [(CANDIDATE, huge if i % 3 == 0 else legit) for i in range(120)]
     capfd.readouterr()
-    flood(ros, recorder, sends, handled)
+    flood(ros, recorder, sends, recorder_handled)
     c = recorder.counters
     assert c["dropped_oversized"] == 40
-    assert c["recorded"] + c["dropped_bag_full"] == 80
+    assert c["recorded"] - 1 + c["dropped_bag_full"] == 80
     assert c["dropped_bag_full"] > 0 and recorder.bag_full
     err = capfd.readouterr().err
     assert len(warning_lines(err, "dropped message (oversized)")) == 1
@@ -168,7 +189,66 @@ def test_recorder_drops_oversized_and_caps_the_bag(ros: Any, tmp_path: Any, capf
     assert summary.message_count == c["recorded"]
     # the cap holds for the data; closing adds the summary section (indexes, statistics)
     assert path.stat().st_size <= cap + 16 * 1024
-    assert all(len(m.message.data) == 1000 for m in read_messages(path))
+    assert all(len(m.message.data) == 1000 for m in read_messages(path, topics=[CANDIDATE.name]))
+    # the bag says it is capped, and what was not recorded
+    assert summary.recorder["bag_full"] == "yes"
+    assert summary.recorder_counts()["dropped_oversized"] == 40
+    text = summary.format()
+    assert f"capped at {cap} bytes: {c['dropped_bag_full']} messages not recorded" in text
+    assert "oversized 40" in text
+
+
+def test_a_flood_never_crowds_the_run_out_of_the_bag(ros: Any, tmp_path: Any) -> None:
+    """Foreign traffic (another run, ids out of range, malformed, before the config) takes at
+    most its share; every message of the run is recorded on its topic, in a capped bag."""
+    path = tmp_path / "crowd.mcap"
+    cap, share = 400_000, 50_000
+    topics = [RUN_CONFIG, CANDIDATE, DUEL_REQUEST]
+    recorder = start_recorder(
+        ros, path, topics, max_bag_bytes=cap, max_foreign_bytes=share, max_message_bytes=20_000
+    )
+    early = theta_message(100, candidate=0)  # before the config: held, then the run's
+    flood(ros, recorder, [(CANDIDATE, early)], recorder_handled)
+    assert len(recorder._held) == 1
+    flood(ros, recorder, [(RUN_CONFIG, wide_config(100).encode())], recorder_handled)
+    assert recorder.counters["recorded"] == 2 and not recorder._held
+    foreign = [
+        (CANDIDATE, theta_message(100, run="other")),  # another run
+        (CANDIDATE, theta_message(100, candidate=10**7)),  # id out of range
+        (DUEL_REQUEST, DuelRequest("t1", 5 * 10**6, 0, 1).encode()),
+        (DUEL_REQUEST, oversized_request()),  # malformed: too many keys
+    ]
+    run = [(CANDIDATE, theta_message(100, candidate=i)) for i in range(40)]
+    run += [(DUEL_REQUEST, DuelRequest("t1", i, i, i + 1).encode()) for i in range(39)]
+    sends: list[tuple[TopicSpec, Any]] = []
+    for i, item in enumerate(run):
+        sends.append(item)
+        sends.extend(foreign * 3 if i % 2 else [])
+    flood(ros, recorder, sends, recorder_handled)
+    c = recorder.counters
+    assert c["recorded"] == 2 + len(run)
+    assert c["dropped_foreign_quota"] > 0 and not recorder.bag_full
+    assert recorder.foreign_bytes <= share
+    rounds = sum(1 for i in range(len(run)) if i % 2)
+    assert c["foreign_wrong_run"] == c["foreign_id_out_of_range"] // 2 == rounds * 3
+    assert c["foreign_too_large"] == rounds * 3
+    recorder.close()
+    # the run's topics hold the run only: every candidate and request, none foreign
+    cands = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
+    assert [x.candidate_id for x in cands if isinstance(x, CandidateMsg)] == [0, *range(40)]
+    reqs = [DuelRequest.decode(m.message) for m in read_messages(path, topics=[DUEL_REQUEST.name])]
+    assert [r.duel_id for r in reqs if isinstance(r, DuelRequest)] == list(range(39))
+    summary = summarize(path)
+    counts = {t.topic: t.count for t in summary.topics}
+    assert (
+        counts["/localpbo/foreign/candidate"] + counts["/localpbo/foreign/duel_request"]
+        == (c["recorded_foreign"])
+    )
+    assert summary.recorder["bag_full"] == "no"
+    text = summary.format()
+    assert f"dropped_foreign_quota {c['dropped_foreign_quota']}" not in text  # reasons shown bare
+    assert f"foreign_quota {c['dropped_foreign_quota']}" in text
+    assert "wrong_run" in text and "id_out_of_range" in text
 
 
 WIDE = "\U0001f600"  # 4 bytes in UTF-8: the worst case per character
@@ -213,8 +293,8 @@ def test_message_bounds_cover_the_largest_legitimate_messages(spec: TopicSpec) -
 
 
 # ---------------------------------------------------------------------- forged ids
-FORGED_IDS = (8, 9, 100, 3558, 10**7, 10**7 + 1, 2**40, MAX_ID)
-"""Well-formed ids outside a budget-8 run (ids 0..7)."""
+FORGED_IDS = (16, 17, 100, 3558, 10**7, 10**7 + 1, 2**40, MAX_ID)
+"""Well-formed ids outside a budget-8 run (candidate ids 0..15)."""
 
 
 def cheap_config(run_id: str = "t1", budget: int = 8) -> RunConfig:
@@ -281,10 +361,10 @@ def test_oracle_state_stays_bounded_under_forged_ids(ros: Any) -> None:
     def out_of_range(spec: TopicSpec, msg: Any) -> bool:
         if spec is EPISODE_RESULT:
             res = EpisodeResult.decode(msg)
-            return isinstance(res, EpisodeResult) and not res.candidate_id < 8
+            return isinstance(res, EpisodeResult) and not res.candidate_id < 16
         req = DuelRequest.decode(msg)
         assert isinstance(req, DuelRequest)
-        return not (req.duel_id < 16 and req.first_id < 8 and req.second_id < 8)
+        return not (req.duel_id < 32 and req.first_id < 16 and req.second_id < 16)
 
     for start in range(0, len(sends), 50):
         for spec, msg in sends[start : start + 50]:
@@ -293,8 +373,8 @@ def test_oracle_state_stays_bounded_under_forged_ids(ros: Any) -> None:
     expected = sum(out_of_range(spec, msg) for spec, msg in sends)
     assert expected >= 3000
     assert oracle.counters["dropped_id_out_of_range"] == expected
-    assert len(oracle._results) <= oracle.ids.candidates == 8
-    assert len(oracle._answered) <= oracle.ids.duels == 16
+    assert len(oracle._results) <= oracle.ids.candidates == 16
+    assert len(oracle._answered) <= oracle.ids.duels == 32
     assert len(oracle._waiting) <= 16
 
 
@@ -316,7 +396,7 @@ def test_evaluator_queue_is_bounded_and_repeats_are_counted(ros: Any) -> None:
     sends = [(CANDIDATE, CandidateMsg("t1", i, theta).encode()) for i in range(6)]
     sends += [(CANDIDATE, CandidateMsg("t1", 1, theta).encode())]  # queued: a repeat
     sends += [(CANDIDATE, CandidateMsg("t1", 2, other).encode())]  # another θ for id 2
-    sends += [(CANDIDATE, CandidateMsg("t1", 30, theta).encode())]  # outside the range
+    sends += [(CANDIDATE, CandidateMsg("t1", 45, theta).encode())]  # outside the range
     sends += [(CANDIDATE, CandidateMsg("t1", 0, theta, "someone.else").encode())]
 
     def handled(n: Any) -> int:

@@ -7,16 +7,29 @@ published before the recorder joined) and appends the bytes with
 form rosbag2 writes). The writer closes a chunk and flushes every ``flush_interval_s``, so a
 killed process loses at most that much.
 
+The run's own messages are never crowded out. Each message is triaged
+(:class:`localpbo_ros.admission.RunFilter`): a message of the recorded run (parameter
+``run_id``, or the first valid run config's: its run id, ids in its range, θ in its box) is
+written on its topic; foreign traffic (another run, malformed, ids out of range, a
+conflicting config) is written under ``/localpbo/foreign/<topic>`` and only up to
+``max_foreign_bytes`` (at most half of ``max_bag_bytes``), so the run always keeps the rest of
+the cap. Messages that arrive before any run config are held (at most ``RECORD_DEPTH``) and
+triaged when it arrives; on close, the rest count as foreign (``before_run``).
+
 Bounded under hostile traffic: a message longer than ``max_message_bytes`` (default twice the
 largest message any decoder accepts, ``localpbo_msgs_py.limits.MAX_MESSAGE_BYTES``) is not
-recorded but counted as ``dropped_oversized``; once the bag holds ``max_bag_bytes`` (like
-``ros2 bag record --max-bag-size``; 0 = no cap) no further message is recorded, each is counted
-as ``dropped_bag_full``, and the bag is still closed as complete at the end. Both counters and
-``recorded`` travel on ``/localpbo/status``; warnings are throttled.
+recorded (``dropped_oversized``); foreign traffic beyond its share is not recorded
+(``dropped_foreign_quota``); once the bag holds ``max_bag_bytes`` (like ``ros2 bag record
+--max-bag-size``; 0 = no cap) no further message is recorded (``dropped_bag_full``). Counters:
+``recorded`` (the run's), ``recorded_foreign``, ``foreign_<reason>`` (foreign messages seen,
+by reason) and the ``dropped_<reason>`` ones; they travel on ``/localpbo/status``, and on close
+they go into the bag as its ``localpbo/recorder`` metadata record with the cap and whether it
+was reached (``localpbo bag-info`` prints them). Warnings are throttled.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, NoReturn
@@ -24,10 +37,13 @@ from typing import Any, NoReturn
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 
-from localpbo_msgs_py.bag import MESSAGE_OVERHEAD, BagWriter
+from localpbo_msgs_py.bag import MESSAGE_OVERHEAD, RECORDER_METADATA, BagWriter, foreign_topic
+from localpbo_msgs_py.errors import DecodeReason
 from localpbo_msgs_py.limits import MAX_MESSAGE_BYTES
-from localpbo_msgs_py.topics import ALL_TOPICS, EVENT_QOS, TopicSpec
+from localpbo_msgs_py.topics import ALL_TOPICS, EVENT_QOS, RUN_CONFIG, TopicSpec
+from localpbo_ros.admission import BEFORE_RUN, RunFilter
 from localpbo_ros.base import SuiteNode
 from localpbo_ros.params import Param, ParameterError
 
@@ -50,8 +66,20 @@ PARAMS = [
         "max_bag_bytes",
         1 << 30,
         "Stop recording once the bag holds this many bytes (later messages are counted as "
-        "dropped_bag_full; the bag is closed as complete). 0 = no cap.",
+        "dropped_bag_full; bag-info says the bag is capped). 0 = no cap.",
         int_range=(0, 1 << 40),
+    ),
+    Param(
+        "max_foreign_bytes",
+        64 << 20,
+        "Bytes foreign traffic (other runs, malformed, ids out of range) may take, recorded "
+        "under /localpbo/foreign/...; at most half of max_bag_bytes. 0 = none recorded.",
+        int_range=(0, 1 << 40),
+    ),
+    Param(
+        "run_id",
+        "",
+        "The run recorded on its own topics; empty = the first valid run config received.",
     ),
 ]
 
@@ -101,12 +129,18 @@ class RecorderNode(SuiteNode):
         self.writer.add_suite_topics(self.topics)
         self._max_message = self.settings["max_message_bytes"]
         self._max_bag = self.settings["max_bag_bytes"]
+        foreign = self.settings["max_foreign_bytes"]
+        self.max_foreign = min(foreign, self._max_bag // 2) if self._max_bag else foreign
+        self.filter = RunFilter(self.settings["run_id"])
         self.bag_full = False
+        self.foreign_bytes = 0
+        self._held: list[tuple[TopicSpec, bytes, int]] = []
+        self.writer.before_close(self._finish)
         self._subs = [
             self.create_subscription(
                 spec.msg_type,
                 spec.name,
-                self._callback(spec.name),
+                self._callback(spec),
                 recording_qos(spec),
                 raw=True,
                 # no QoS-event handlers: fewer entities in every executor wait (the recorder's
@@ -122,29 +156,82 @@ class RecorderNode(SuiteNode):
         """Messages written to the bag."""
         return self.counters["recorded"]
 
-    def _callback(self, topic: str) -> Any:
+    def _callback(self, spec: TopicSpec) -> Any:
         def record(data: bytes) -> None:
             size = len(data)
             if size > self._max_message:
-                self.drop("oversized", f"{topic}: {size} bytes > max_message_bytes")
+                self.drop("oversized", f"{spec.name}: {size} bytes > max_message_bytes")
                 return
-            if (
-                not self.bag_full
-                and self._max_bag
-                and (self.writer.size_bytes + size + MESSAGE_OVERHEAD > self._max_bag)
-            ):
-                self.bag_full = True
-                self.get_logger().warning(
-                    f"bag reached max_bag_bytes={self._max_bag}: recording stops, "
-                    "further messages are counted as dropped_bag_full"
-                )
-            if self.bag_full:
-                self.counters["dropped_bag_full"] += 1
+            now = time.time_ns()
+            reason = self._triage(spec, data)
+            if reason == BEFORE_RUN and len(self._held) < RECORD_DEPTH:
+                self._held.append((spec, data, now))
                 return
-            self.writer.write_serialized(topic, data)
-            self.counters["recorded"] += 1
+            self._write(spec, data, reason, now)
+            config = self.filter.config
+            if config is not None and self.status_run_id != config.run_id:
+                self.status_run_id = config.run_id  # its own status is the run's too
+            if reason is None and spec.name == RUN_CONFIG.name and self._held:
+                held, self._held = self._held, []
+                for h_spec, h_data, h_time in held:
+                    self._write(h_spec, h_data, self._triage(h_spec, h_data), h_time)
 
         return record
+
+    def _triage(self, spec: TopicSpec, data: bytes) -> str | None:
+        try:
+            msg = deserialize_message(data, spec.msg_type)
+        except Exception:  # bytes that are not a message of the topic's type
+            return DecodeReason.MALFORMED.value
+        return self.filter.classify(spec.name, msg)
+
+    def _fits(self, size: int) -> bool:
+        if self.bag_full:
+            return False
+        if self._max_bag and self.writer.size_bytes + size + MESSAGE_OVERHEAD > self._max_bag:
+            self.bag_full = True
+            self.get_logger().warning(
+                f"bag reached max_bag_bytes={self._max_bag}: recording stops, "
+                "further messages are counted as dropped_bag_full"
+            )
+            return False
+        return True
+
+    def _write(self, spec: TopicSpec, data: bytes, reason: str | None, log_time: int) -> None:
+        """Write one message on its topic (``reason`` None: the run's) or as foreign traffic."""
+        size = len(data)
+        topic = spec.name
+        if reason is not None:
+            self.counters[f"foreign_{reason}"] += 1
+            self.warn(f"foreign_{reason}", f"foreign message on {topic} ({reason})")
+            if self.foreign_bytes + size + MESSAGE_OVERHEAD > self.max_foreign:
+                self.counters["dropped_foreign_quota"] += 1
+                return
+            topic = foreign_topic(topic)
+            self.writer.add_topic(topic, spec.type_name, spec.qos)
+        if not self._fits(size):
+            self.counters["dropped_bag_full"] += 1
+            return
+        self.writer.write_serialized(topic, data, log_time_ns=log_time)
+        if reason is None:
+            self.counters["recorded"] += 1
+        else:
+            self.foreign_bytes += size + MESSAGE_OVERHEAD
+            self.counters["recorded_foreign"] += 1
+
+    def _finish(self, writer: BagWriter) -> None:
+        """Before the bag closes: the held messages as foreign, then the accounting record."""
+        held, self._held = self._held, []
+        for spec, data, log_time in held:
+            self._write(spec, data, BEFORE_RUN, log_time)
+        record = {
+            "run_id": "" if self.filter.config is None else self.filter.config.run_id,
+            "max_bag_bytes": str(self._max_bag),
+            "max_foreign_bytes": str(self.max_foreign),
+            "bag_full": "yes" if self.bag_full else "no",
+        }
+        record.update({f"count.{k}": str(v) for k, v in sorted(self.counters.items())})
+        writer.add_metadata(RECORDER_METADATA, record)
 
     def matched(self, topics: Iterable[str]) -> bool:
         """True when every named topic has at least one publisher matched to the recorder."""
@@ -156,7 +243,7 @@ class RecorderNode(SuiteNode):
         )
 
     def close(self) -> None:
-        """Finish the bag (summary and footer)."""
+        """Finish the bag: held messages, the accounting record, summary and footer."""
         self.writer.close()
 
 
