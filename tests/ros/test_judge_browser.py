@@ -98,13 +98,15 @@ def until(pred: Callable[[], Any], timeout: float) -> Any:
     raise AssertionError("condition not met in time")
 
 
-def duel_shown(driver: Any) -> int:
-    """The duel the page shows once its answer buttons are enabled."""
+def duel_shown(driver: Any, *, settle: bool = True) -> int:
+    """The duel the page shows once its answer buttons are enabled (and, with ``settle``,
+    once an answer would not count as a double press of the previous one)."""
 
     def ready() -> int | None:
         enabled = driver.find_element("id", "answer-a").is_enabled()
         duel = driver.execute_script("return state && state.duel && state.duel.duel_id")
-        return None if not enabled or duel is None else int(duel) + 1
+        calm = not settle or driver.execute_script("return settled()")
+        return None if not enabled or duel is None or not calm else int(duel) + 1
 
     return until(ready, 20) - 1
 
@@ -136,7 +138,7 @@ def test_whole_run_answered_in_the_browser(browser: Any, tmp_path: Path) -> None
     until(lambda: browser.find_element("id", "canvas-a").is_displayed(), 10)
     until(lambda: browser.find_element("id", "canvas-b").is_displayed(), 10)
     rows = browser.find_elements("css selector", "#params tbody tr")
-    assert len(rows) == 16 and rows[0].text.startswith("W[motor1_rot")
+    assert len(rows) == 16 and rows[0].get_attribute("textContent").startswith("W[motor1_rot")
     assert "Keys" in browser.find_element("tag name", "footer").text
     assert not browser.find_element("id", "answer-tie").is_enabled()  # no ties in this run
     before = browser.execute_script("return JSON.stringify(state)")
@@ -168,7 +170,7 @@ def test_whole_run_answered_in_the_browser(browser: Any, tmp_path: Path) -> None
     duel = duel_shown(browser)
     first_tab = browser.current_window_handle
     browser.switch_to.new_window("tab")
-    browser.get(run.url + "?refresh=60000")  # this tab does not refresh on its own
+    browser.get(run.url + "?push=0&refresh=60000")  # this tab does not refresh on its own
     assert duel_shown(browser) == duel
     second_tab = browser.current_window_handle
     browser.switch_to.window(first_tab)

@@ -16,6 +16,11 @@ answer time: :mod:`localpbo_ros.judge`.
 
 The page binds to 127.0.0.1 unless ``host`` names another address and ``allow_remote`` is
 true (anyone who can reach the port and knows the URL can answer).
+
+**The same address after a restart**: the port is kept in the run's folder next to the
+secret; a judge started with ``port`` 0 (a free one) for a run it has served before moves to
+that port when it is free, so a tab left open reconnects by itself (its event stream retries
+every second). ``name`` is recorded with every answer whose page names nobody.
 """
 
 from __future__ import annotations
@@ -47,7 +52,7 @@ from localpbo_msgs_py.topics import (
 )
 from localpbo_ros.driver import problem_of
 from localpbo_ros.follower import FollowerNode
-from localpbo_ros.judge import Journal, JudgeCore, is_simulated
+from localpbo_ros.judge import MAX_NAME, Journal, JudgeCore, is_simulated
 from localpbo_ros.judge_web import JudgeWeb
 from localpbo_ros.params import Param, ParameterError
 from localpbo_ros.rollouts import RolloutCache
@@ -68,6 +73,11 @@ PARAMS = [
         "Folder of the answer journals and URL secrets (one sub-folder per run).",
     ),
     Param("url_file", "", "File the page's URL is written to; empty = <state_dir>/url."),
+    Param(
+        "name",
+        "",
+        "The judging person's name, recorded with each answer (the page may set its own).",
+    ),
     Param(
         "frame_stride",
         4,
@@ -130,6 +140,7 @@ class JudgeNode(FollowerNode):
             lambda outcome: self._pub.publish(outcome.encode()),
             self.drop,
             max_pending=self.settings["max_pending"],
+            judge_name=self.settings["name"][:MAX_NAME],
         )
         self._rollouts: RolloutCache | None = None
         try:
@@ -203,6 +214,7 @@ class JudgeNode(FollowerNode):
             )
         journal = Journal(self.state_dir / config.run_id)
         secret = journal.secret(lambda: secrets.token_urlsafe(24))
+        self._keep_port(journal)
         answered = self.core.adopt(config, journal, secret, simulated=simulated)
         self.url = self.web.url()
         self.url_file.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
@@ -215,6 +227,33 @@ class JudgeNode(FollowerNode):
             f"judge the duels of run {config.run_id} at {self.url} "
             f"({answered} answers journaled in {journal.path})"
         )
+
+    def _keep_port(self, journal: Journal) -> None:
+        """Serve on the run's former port when this judge took a free one (see module
+        docstring); remember the port in use."""
+        former = journal.port()
+        if self.settings["port"] == 0 and former is not None and former != self.web.port:
+            try:
+                moved = JudgeWeb(
+                    self.core,
+                    self.drop,
+                    self.rollout,
+                    host=self.web.host,
+                    port=former,
+                    max_connections=self.settings["max_connections"],
+                )
+            except OSError as exc:
+                self.get_logger().warning(
+                    f"the run's former port {former} is taken ({exc}); serving on "
+                    f"{self.web.port}: reopen the page at its new address"
+                )
+            else:
+                self.web.close()
+                self.web = moved
+        try:
+            journal.keep_port(self.web.port)
+        except OSError as exc:
+            self.drop("journal_failed", f"cannot keep the port: {exc}")
 
     # ------------------------------------------------------------------ callbacks
     def _on_candidate(self, msg: object) -> None:

@@ -6,15 +6,24 @@ the run is known, is 404 (counted as ``dropped_wrong_secret``). Under the secret
 * ``GET /<secret>/`` the page, ``GET /<secret>/static/<file>`` its script and style (package
   data, no CDN);
 * ``GET /<secret>/api/state`` what the page shows (:meth:`JudgeCore.view`);
+* ``GET /<secret>/api/events`` the same state pushed as server-sent events
+  (``text/event-stream``): one ``data:`` line of JSON at once and again the moment anything
+  changes (a comment every ``KEEPALIVE_S`` otherwise); the browser's ``EventSource``
+  reconnects by itself (``retry: 1000``), e.g. to a resumed run on the same port. At most
+  ``MAX_STREAMS`` streams at once (503 beyond);
 * ``POST /<secret>/api/answer`` an answer (:meth:`JudgeCore.answer`): 200 once recorded,
   400 malformed (field and reason in the JSON body), 409 already answered or not ready;
+* ``POST /<secret>/api/undo`` take back the latest answer (:meth:`JudgeCore.undo`);
 * ``GET /<secret>/api/rollout/<candidate id>`` a simulated candidate's recorded episode
   (:mod:`localpbo_ros.rollouts`), 404 for an unknown candidate or a task without episodes.
 
 Resources are bounded under hostile input: at most ``max_connections`` requests are handled
-at once (further connections are closed at once and counted as ``dropped_http_busy``), a
-request line or header may not exceed 8 KiB, bodies are read only up to
-``judge.MAX_BODY_BYTES`` (larger ones are refused unread) and a silent client is cut off after
+at once (further connections are closed at once and counted as ``dropped_http_busy``); a
+request line longer than ``MAX_LINE`` (8 KiB) gets 414 and the header block (all lines
+together) larger than ``MAX_HEADERS`` (8 KiB) gets 431, both unread beyond the limit; a JSON
+body with a repeated key gets 400; bodies are read only up to ``judge.MAX_BODY_BYTES`` (larger
+ones are refused unread); a body that stops short of its ``Content-Length`` gets 408 after
+``BODY_TIMEOUT_S`` (3 s) and the connection is closed, and a silent client is cut off after
 ``SOCKET_TIMEOUT_S``. Nothing is logged per request; refusals go to the node's throttled
 warnings and counters.
 """
@@ -35,7 +44,16 @@ from typing import Any
 from localpbo_ros.judge import MAX_BODY_BYTES, JudgeCore, Reply
 
 SOCKET_TIMEOUT_S = 10.0
+BODY_TIMEOUT_S = 3.0
+"""Seconds a request body may take to arrive in full (then 408)."""
 MAX_LINE = 8192
+"""Bytes of the request line at most (414 beyond)."""
+MAX_HEADERS = 8192
+"""Bytes of the header lines together at most (431 beyond)."""
+MAX_STREAMS = 8
+"""Event streams served at once."""
+KEEPALIVE_S = 15.0
+"""Seconds between two keep-alive comments of an idle event stream."""
 STATIC_FILES = {
     "judge.js": "text/javascript; charset=utf-8",
     "judge.css": "text/css; charset=utf-8",
@@ -66,6 +84,8 @@ class _Server(ThreadingHTTPServer):
     def __init__(self, address: tuple[str, int], judge: JudgeWeb, max_connections: int) -> None:
         self.judge = judge
         self.slots = threading.BoundedSemaphore(max_connections)
+        self.streams = threading.BoundedSemaphore(MAX_STREAMS)
+        self.closing = False
         family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
         self.address_family = family
         super().__init__(address, _Handler)
@@ -157,6 +177,8 @@ class _Handler(BaseHTTPRequestHandler):
             self._send(200, web_file(rest[7:]), STATIC_FILES[rest[7:]])
         elif rest == "api/state":
             self._json(Reply(200, judge.core.view()))
+        elif rest == "api/events" and self.command == "GET":
+            self._events()
         elif (match := ROLLOUT.fullmatch(rest)) is not None:
             rollout = judge.rollout(int(match.group(1)))
             if rollout is None:
@@ -170,12 +192,52 @@ class _Handler(BaseHTTPRequestHandler):
 
     do_HEAD = do_GET
 
+    def _events(self) -> None:
+        """Stream the page's state (server-sent events) until the client or server leaves."""
+        server = self.server
+        if not server.streams.acquire(blocking=False):
+            self.close_connection = True
+            self._refuse(503, "events", "too_many_streams", f"at most {MAX_STREAMS} at once")
+            return
+        core = server.judge.core
+        self.close_connection = True
+        try:
+            self.send_response(200)
+            self.send_header("Content-Type", "text/event-stream; charset=utf-8")
+            for key, value in SECURITY_HEADERS.items():
+                self.send_header(key, value)
+            self.send_header("Connection", "close")
+            self.end_headers()
+            self.wfile.write(b"retry: 1000\n\n")
+            seen = -1
+            while not server.closing:
+                with core.changed:
+                    if core.version == seen:
+                        core.changed.wait_for(
+                            lambda last=seen: core.version != last or server.closing,
+                            timeout=KEEPALIVE_S,
+                        )
+                    if server.closing:
+                        break
+                    if core.version == seen:
+                        chunk = b": keep-alive\n\n"
+                    else:
+                        seen = core.version
+                        state = json.dumps(core.view(), allow_nan=False, separators=(",", ":"))
+                        chunk = b"data: " + state.encode() + b"\n\n"
+                self.wfile.write(chunk)
+                self.wfile.flush()
+        except (ConnectionError, TimeoutError, OSError):
+            pass  # the page went away; it reconnects by itself
+        finally:
+            server.streams.release()
+
     def do_POST(self) -> None:
         judge = self.server.judge
         rest = self._route()
         if rest is None:
             return
-        if rest != "api/answer":
+        if rest not in ("api/answer", "api/undo"):
             self._not_found(rest)
             return
         length_text = self.headers.get("Content-Length", "")
@@ -188,14 +250,88 @@ class _Handler(BaseHTTPRequestHandler):
             self.close_connection = True
             self._refuse(400, "body", "too_large", f"{length} bytes; at most {MAX_BODY_BYTES}")
             return
-        self._json(judge.core.answer(self.rfile.read(length)))
+        self.connection.settimeout(BODY_TIMEOUT_S)
+        try:
+            body = self.rfile.read(length)
+        except TimeoutError:
+            body = b""
+        finally:
+            self.connection.settimeout(SOCKET_TIMEOUT_S)
+        if len(body) < length:
+            self.close_connection = True
+            detail = f"{len(body)} of {length} bytes arrived within {BODY_TIMEOUT_S:g} s"
+            self._refuse(408, "body", "body_timeout", detail)
+            return
+        if rest == "api/undo":
+            self._json(judge.core.undo(body))
+        else:
+            self._json(judge.core.answer(body))
+
+    def handle_one_request(self) -> None:
+        """One request, its line read only up to ``MAX_LINE`` bytes (414 beyond)."""
+        try:
+            self.raw_requestline = self.rfile.readline(MAX_LINE + 1)
+            if len(self.raw_requestline) > MAX_LINE:
+                self.requestline, self.request_version, self.command = "", "HTTP/1.1", ""
+                self.close_connection = True
+                self._refuse(414, "request_line", "line_too_long", f"more than {MAX_LINE} bytes")
+                return
+            if not self.raw_requestline:
+                self.close_connection = True
+                return
+            if not self.parse_request():
+                return
+            method = getattr(self, "do_" + self.command, None)
+            if method is None:
+                self.send_error(501, f"Unsupported method ({self.command!r})")
+                return
+            method()
+            self.wfile.flush()
+        except TimeoutError:
+            self.close_connection = True
 
     def parse_request(self) -> bool:
-        if len(self.raw_requestline) > MAX_LINE:
-            self.server.judge.refused("http_too_large", "request line too long")
-            self.send_error(414)
+        """The standard parse, with the header block limited to ``MAX_HEADERS`` bytes (431
+        beyond, read no further)."""
+        real = self.rfile
+        limited = _LimitedLines(real, MAX_HEADERS + len(self.raw_requestline))
+        self.rfile = limited  # type: ignore[assignment]
+        try:
+            ok = super().parse_request()
+        finally:
+            self.rfile = real
+        if limited.exceeded:
+            self.close_connection = True
+            if not ok:  # the standard parse already answered (it saw a cut-off header)
+                return False
+            self._refuse(431, "headers", "headers_too_large", f"more than {MAX_HEADERS} bytes")
             return False
-        return super().parse_request()
+        return ok
+
+
+class _LimitedLines:
+    """``readline`` over a file with a byte budget; past it, the header block ends (an empty
+    line) and ``exceeded`` is set."""
+
+    def __init__(self, raw: Any, budget: int) -> None:
+        self.raw = raw
+        self.budget = budget
+        self.exceeded = False
+
+    def readline(self, limit: int = -1) -> bytes:
+        if self.budget <= 0:
+            self.exceeded = True
+            return b"\r\n"
+        size = self.budget + 1 if limit < 0 else min(limit, self.budget + 1)
+        line = self.raw.readline(size)
+        self.budget -= len(line)
+        if self.budget < 0:
+            self.exceeded = True
+            return b"\r\n"
+        return line
+
+    def read(self, n: int = -1) -> bytes:
+        return bytes(self.raw.read(n))
 
 
 class JudgeWeb:
@@ -248,7 +384,10 @@ class JudgeWeb:
         return f"http://{host}:{self.port}/{secret}/"
 
     def close(self) -> None:
-        """Stop serving and release the port."""
+        """Stop serving (event streams end) and release the port."""
+        with self.core.changed:
+            self._server.closing = True
+            self.core.changed.notify_all()
         self._server.shutdown()
         self._server.server_close()
         self._thread.join(timeout=5.0)

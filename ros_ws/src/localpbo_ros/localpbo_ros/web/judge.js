@@ -1,26 +1,34 @@
-// The judge's page: polls api/state, shows the current duel, replays the two episodes in
-// sync, and posts answers to api/answer. No framework, no network access beyond this server.
+// The judge's page: takes the state the judge pushes (server-sent events on api/events; a
+// slow poll of api/state only if the stream cannot be opened), shows the current duel,
+// replays the two episodes in sync (slowed down when short, looped, at a chosen speed), and
+// posts answers to api/answer and undos to api/undo. No framework, no network access
+// beyond this server.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(window.location.search);
-const REFRESH_MS = Math.max(200, Number(params.get("refresh")) || 700);
-// After an answer the next duel is usually ready within milliseconds (the optimizer prepared
-// it while you watched): look often until it is, for at most FAST_FOR_MS.
-const FAST_MS = 25;
-const FAST_FOR_MS = 5000;
-const SETTLE_MS = 400; // answers are ignored this long after a new duel appears
+const POLL_MS = Math.max(200, Number(params.get("refresh")) || 1000); // fallback only
+const SETTLE_MS = 400; // an answer this soon after the previous one is a double press: refused
+const MIN_SCREEN_S = 1.5; // a shorter episode is slowed down to last this long on screen
+const LOOP_PAUSE_S = 0.8; // the last frame stays this long before the loop starts again
+const SPEEDS = [0.25, 0.5, 1, 2, 4];
 const COLORS = { a: "#1f6fb2", b: "#c0561b" };
+const store = (() => { try { return window.localStorage; } catch (e) { return null; } })();
 
 let state = null;
 let shownKey = "";
-let shownAt = 0;
+let lastAnswerAt = -1e9; // when the previous answer (key or click) was sent
 let inFlight = false;
-let timer = null;
-let answered = null; // { id, at }: the duel just answered, until the next one is ready
-const answeredIds = new Set(); // duels this page answered: never offered again
-let replies = 0; // answers the judge replied to; a state fetched before the latest one is stale
+let stream = null;
+let streamOpen = false;
+let pollTimer = null;
+let review = null; // { duel_id, a, b, answer }: a past duel replayed from the history
+const answeredIds = new Set(); // duels this page answered: never offered again unless undone
+// visible time of the current duel (Page Visibility API): counted only while the page shows
+const watch = { key: "", visibleMs: 0, since: null, hidden: false };
 const replay = { a: null, b: null, start: performance.now(), offset: 0, playing: true };
+let speed = Number(store && store.getItem("localpbo.speed")) || 1;
+if (!SPEEDS.includes(speed)) speed = 1;
 
 function fmt(v) {
   if (v === null || v === undefined) return "–";
@@ -31,35 +39,66 @@ function fmt(v) {
 
 function text(el, value) { if (el.textContent !== value) el.textContent = value; }
 
+function say(message, kind) {
+  const reply = $("reply");
+  text(reply, message);
+  reply.className = "reply" + (kind ? " " + kind : "");
+}
+
+// ------------------------------------------------------------------ state from the judge
+function accept(fresh) {
+  state = fresh; // one stream delivers states in order; a resumed judge starts a new one
+  render();
+}
+
+function connect() {
+  // ?push=0: no stream, a poll every ?refresh= ms (a second tab that should not update)
+  if (!window.EventSource || params.get("push") === "0") { stream = null; poll(); return; }
+  stream = new EventSource("api/events");
+  stream.onopen = () => { streamOpen = true; clearTimeout(pollTimer); };
+  stream.onmessage = (e) => {
+    try { accept(JSON.parse(e.data)); } catch (err) { /* a cut-off event: the next follows */ }
+  };
+  stream.onerror = () => {
+    streamOpen = false;
+    lostContact("reconnecting");
+    if (stream.readyState === EventSource.CLOSED) { stream = null; poll(); }
+  };
+}
+
 async function refresh() {
-  clearTimeout(timer);
-  const asked = replies;
   try {
     const r = await fetch("api/state", { cache: "no-store" });
     if (!r.ok) throw new Error("HTTP " + r.status);
-    const fresh = await r.json();
-    if (asked !== replies) return; // fetched before an answer landed: the answer's refresh follows
-    state = fresh;
+    state = await r.json();
     render();
+    return true;
   } catch (e) {
-    const p = state && state.progress;
-    const ended = p && !state.duel && (state.finished || p.evaluations >= p.budget);
-    text($("phase"), ended ? "The run has ended and the judge has stopped. Thank you."
-      : "Lost contact with the judge (" + e.message + "); retrying…");
-    setButtons(false, false, false);
+    lostContact(e.message);
+    return false;
   }
-  timer = setTimeout(refresh, waitingForNext() ? FAST_MS : REFRESH_MS);
 }
 
-function waitingForNext() {
-  if (!answered) return false;
-  const d = state && state.duel;
-  const next = d && d.ready && d.duel_id !== answered.id;
-  const ended = state && !d && state.finished;
-  if (next || ended || performance.now() - answered.at > FAST_FOR_MS) answered = null;
-  return answered !== null;
+async function poll() {
+  clearTimeout(pollTimer);
+  await refresh();
+  if (!stream) {
+    pollTimer = setTimeout(() => {
+      if (params.get("push") === "0") poll(); else { connect(); if (!stream) poll(); }
+    }, POLL_MS);
+  }
 }
 
+function lostContact(why) {
+  const p = state && state.progress;
+  const ended = p && !state.duel && (state.finished || p.evaluations >= p.budget);
+  text($("phase"), ended ? "The run has ended and the judge has stopped. Thank you."
+    : "Lost contact with the judge (" + why + "); it reconnects by itself…");
+  setButtons(false, false, false);
+  $("undo").disabled = true;
+}
+
+// ------------------------------------------------------------------ rendering
 function setButtons(answer, tie, skip) {
   $("answer-a").disabled = !answer;
   $("answer-b").disabled = !answer;
@@ -67,10 +106,18 @@ function setButtons(answer, tie, skip) {
   $("answer-skip").disabled = !skip;
 }
 
+function settled() { return performance.now() - lastAnswerAt >= SETTLE_MS; }
+
 function render() {
   const run = state.run;
-  if (!run) { text($("phase"), "Waiting for the run to start…"); $("duel").hidden = true; return; }
+  if (!run) { text($("phase"), "Waiting for the run to start…"); return; }
   text($("run"), `run ${run.run_id} · ${run.task} · ${run.algorithm} · seed ${run.seed}`);
+  $("goal").hidden = !run.goal;
+  text($("goal"), run.goal || "");
+  const nameBox = $("judge-name");
+  if (!nameBox.value && document.activeElement !== nameBox) {
+    nameBox.value = (store && store.getItem("localpbo.judge")) || run.judge || "";
+  }
   const p = state.progress;
   $("progress-bar").style.width = Math.min(100, 100 * p.evaluations / p.budget) + "%";
   text($("progress-text"), `${p.evaluations} of ${p.budget} evaluations · you answered ` +
@@ -78,31 +125,44 @@ function render() {
     (p.open > 1 ? ` · ${p.open} duels waiting` : ""));
   $("answer-tie").title = run.ties ? "can't tell (t or ↓)"
     : "this run does not take can't-tell answers (no tie_threshold)";
+  $("notice").hidden = !state.notice;
+  text($("notice"), state.notice || "");
+  for (const id of state.retracting || []) answeredIds.delete(id);
   renderIncumbent(run);
   renderHistory();
+  renderUndo();
+  if (review) { renderReview(); return; }
   const d = state.duel;
+  const mine = d && answeredIds.has(d.duel_id);
+  const waiting = !d || mine || !d.ready;
   if (!d) {
-    $("duel").hidden = true;
+    // the layout keeps its place: the last duel stays, dimmed, while the next is prepared
+    dim(shownKey !== "" && !state.finished, state.finished ? "" : "preparing the next duel…");
+    if (shownKey === "") $("duel").hidden = true;
     text($("phase"), state.finished ? "Run complete: thank you. You may close this page."
       : "No duel waiting: the optimizer is proposing the next candidates…");
-    shownKey = "";
+    setButtons(false, false, false);
     return;
   }
   $("duel").hidden = false;
   const key = `${d.duel_id}:${d.a.id}:${d.b.id}`;
-  if (key !== shownKey) newDuel(run, d, key);
-  else if ($("params").dataset.complete !== "yes" && d.a.theta && d.b.theta) renderParams(run, d);
-  for (const side of ["a", "b"]) {
-    const s = d[side];
-    text($("cid-" + side), `candidate ${s.id}`);
-    const badge = $("state-" + side);
-    const label = { done: "result in", evaluating: "being evaluated", queued: "queued",
-      unknown: "waiting" }[s.result];
-    text(badge, label);
-    badge.className = "badge " + s.result;
-    $("side-" + side).classList.toggle("evaluating", d.evaluating === side.toUpperCase());
+  if (key !== shownKey && !mine) newDuel(run, d, key);
+  else if (key === shownKey && $("params").dataset.complete !== "yes" && d.a.theta && d.b.theta) {
+    renderParams(run, d);
   }
-  const mine = answeredIds.has(d.duel_id);
+  if (key === shownKey) {
+    for (const side of ["a", "b"]) {
+      const s = d[side];
+      text($("cid-" + side), `candidate ${s.id}`);
+      const badge = $("state-" + side);
+      const label = { done: "result in", evaluating: "being evaluated", queued: "queued",
+        unknown: "waiting" }[s.result];
+      text(badge, label);
+      badge.className = "badge " + s.result;
+      $("side-" + side).classList.toggle("evaluating", d.evaluating === side.toUpperCase());
+    }
+  }
+  dim(waiting, mine ? "preparing the next duel…" : (d.ready ? "" : "evaluating…"));
   if (mine) {
     text($("phase"), `Duel ${d.duel_id} is recorded; the next duel is on its way…`);
   } else if (d.ready) {
@@ -116,40 +176,63 @@ function render() {
   } else {
     text($("phase"), "Waiting for the results of A and B…");
   }
-  const settled = performance.now() - shownAt >= SETTLE_MS;
-  setButtons(d.ready && !mine && !inFlight && settled, run.ties, !mine && !inFlight && settled);
-  if (!settled) setTimeout(render, SETTLE_MS);
+  trackVisible(d.ready && !mine ? key : "");
+  setButtons(d.ready && !mine && !inFlight, run.ties, !mine && !inFlight);
+}
+
+function dim(on, label) {
+  $("duel").querySelector(".stage").classList.toggle("dim", on);
+  $("preparing").hidden = !on || !label;
+  text($("preparing"), label || "");
 }
 
 function newDuel(run, d, key) {
   shownKey = key;
-  shownAt = performance.now();
   renderParams(run, d);
-  replay.a = replay.b = null;
-  for (const side of ["a", "b"]) { $("canvas-" + side).hidden = true; text($("note-" + side), ""); }
-  $("player").hidden = true;
+  for (const side of ["a", "b"]) {
+    text($("cid-" + side), `candidate ${d[side].id}`);
+    text($("note-" + side), "");
+  }
+  $("answer-note").value = "";
   if (run.simulated) {
-    for (const side of ["a", "b"]) loadRollout(side, d[side].id, key);
+    loadPair(d.a.id, d.b.id, key);
+  } else {
+    replay.a = replay.b = null;
+    for (const side of ["a", "b"]) $("canvas-" + side).hidden = true;
+    $("player").hidden = true;
+    text($("rate"), "");
   }
 }
 
-async function loadRollout(side, cid, key) {
-  text($("note-" + side), "loading the episode…");
-  try {
-    const r = await fetch(`api/rollout/${cid}`, { cache: "no-store" });
-    if (!r.ok) throw new Error("HTTP " + r.status);
-    const rollout = await r.json();
-    if (key !== shownKey) return;
+// The two episodes load together and start together: the old pair stays on screen (dimmed)
+// until both new ones are in, so the layout never jumps.
+async function loadPair(aId, bId, key) {
+  for (const side of ["a", "b"]) text($("note-" + side), "loading the episode…");
+  const got = await Promise.all([aId, bId].map(async (cid) => {
+    try {
+      const r = await fetch(`api/rollout/${cid}`, { cache: "no-store" });
+      if (!r.ok) throw new Error("HTTP " + r.status);
+      return await r.json();
+    } catch (e) { return { error: e.message }; }
+  }));
+  if (key !== currentKey()) return;
+  ["a", "b"].forEach((side, i) => {
+    const rollout = got[i];
+    if (rollout.error) {
+      replay[side] = null;
+      text($("note-" + side), "no replay (" + rollout.error + ")");
+      return;
+    }
     replay[side] = rollout;
     $("canvas-" + side).hidden = false;
-    $("player").hidden = false;
-    const secs = (rollout.steps * rollout.dt).toFixed(1);
+    const secs = episodeSeconds(rollout).toFixed(2);
     text($("note-" + side), rollout.terminated ? `fell after ${secs} s` : `episode of ${secs} s`);
-    restart();
-  } catch (e) {
-    text($("note-" + side), "no replay (" + e.message + ")");
-  }
+  });
+  $("player").hidden = !(replay.a || replay.b);
+  restart();
 }
+
+function currentKey() { return review ? `review:${review.duel_id}` : shownKey; }
 
 function renderParams(run, d) {
   const body = $("params").tBodies[0];
@@ -189,66 +272,215 @@ function renderIncumbent(run) {
 
 function renderHistory() {
   const body = $("history").tBodies[0];
-  const rows = state.history.map((h) =>
-    [h.duel_id, h.a, h.b, h.answer, h.seconds === null ? "–" : h.seconds.toFixed(1) + " s"]);
-  const sig = JSON.stringify(rows);
+  const sig = JSON.stringify(state.history) + (state.run.simulated ? "s" : "");
   if (body.dataset.sig === sig) return;
   body.dataset.sig = sig;
-  body.replaceChildren(...rows.map((cells) => {
+  body.replaceChildren(...state.history.map((h) => {
     const tr = document.createElement("tr");
-    for (const c of cells) { const td = document.createElement("td"); td.textContent = c; tr.appendChild(td); }
+    if (h.undone) tr.className = "undone";
+    const seconds = h.seconds === null ? "–" : h.seconds.toFixed(1) + " s" + (h.hidden ? "*" : "");
+    const cells = [h.duel_id, h.a, h.b, h.undone ? `${h.answer} (undone)` : h.answer, seconds,
+      h.note || "", h.judge || ""];
+    cells.forEach((c, i) => {
+      const td = document.createElement("td");
+      td.textContent = c;
+      if (i === 5) { td.className = "notecell"; td.title = h.note || ""; }
+      if (i === 4 && h.hidden) td.title = "the page was hidden meanwhile: visible time only";
+      tr.appendChild(td);
+    });
+    const td = document.createElement("td");
+    if (state.run.simulated) {
+      const b = document.createElement("button");
+      b.type = "button";
+      b.textContent = "replay";
+      b.className = "history-replay";
+      b.tabIndex = -1;
+      b.addEventListener("click", () => startReview(h));
+      td.appendChild(b);
+    }
+    tr.appendChild(td);
     return tr;
   }));
 }
 
-async function answer(choice) {
+function renderUndo() {
+  const u = state.undo;
+  const b = $("undo");
+  b.disabled = !u || inFlight;
+  b.title = u ? `take back your answer to duel ${u.duel_id} (${u.answer}); u or Ctrl+Z`
+    : (state.retracting && state.retracting.length ? "an undo is on its way" : "nothing to undo");
+}
+
+// ------------------------------------------------------------------ review of past duels
+function startReview(h) {
+  review = { duel_id: h.duel_id, a: h.a, b: h.b, answer: h.answer };
+  $("duel").hidden = false;
+  dim(false, "");
+  renderReview();
+  for (const side of ["a", "b"]) text($("cid-" + side), `candidate ${review[side]}`);
+  loadPair(h.a, h.b, currentKey());
+}
+
+function renderReview() {
+  $("review").hidden = false;
+  text($("review-text"), `Reviewing duel ${review.duel_id}: you said ${review.answer}.`);
+  text($("phase"), `Reviewing duel ${review.duel_id} (answers are off while you review).`);
+  setButtons(false, false, false);
+}
+
+function endReview() {
+  if (!review) return;
+  review = null;
+  $("review").hidden = true;
+  const d = state && state.duel;
+  shownKey = "";
+  if (d && !answeredIds.has(d.duel_id)) render();
+  else if (state) render();
+}
+
+// ------------------------------------------------------------------ visible time
+function trackVisible(key) {
+  if (key !== watch.key) {
+    watch.key = key;
+    watch.visibleMs = 0;
+    watch.hidden = document.visibilityState !== "visible";
+    watch.since = key && document.visibilityState === "visible" ? performance.now() : null;
+  }
+}
+
+function visibleSeconds() {
+  let ms = watch.visibleMs;
+  if (watch.since !== null) ms += performance.now() - watch.since;
+  return ms / 1000;
+}
+
+document.addEventListener("visibilitychange", () => {
+  if (document.visibilityState === "visible") {
+    if (watch.key && watch.since === null) watch.since = performance.now();
+  } else {
+    if (watch.since !== null) watch.visibleMs += performance.now() - watch.since;
+    watch.since = null;
+    if (watch.key) watch.hidden = true;
+  }
+});
+
+// ------------------------------------------------------------------ answers
+async function post(path, payload) {
+  const r = await fetch(path, {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify(payload),
+  });
+  const body = await r.json().catch(() => ({ detail: "unreadable reply" }));
+  return [r, body];
+}
+
+async function answer(choice, keyName) {
   const d = state && state.duel;
   const button = { a: "answer-a", b: "answer-b", tie: "answer-tie", skip: "answer-skip" }[choice];
   if (!d || inFlight || $(button).disabled) return;
+  if (!settled()) {
+    const label = { a: "A better", b: "B better", tie: "can't tell", skip: "skip" }[choice];
+    say(`${keyName ? "Key " + keyName : "Click"} (${label}) not taken: it came ` +
+      `${Math.round(performance.now() - lastAnswerAt)} ms after your previous answer ` +
+      `(a double press?); answer duel ${d.duel_id} again if you meant it.`, "warn");
+    return;
+  }
+  lastAnswerAt = performance.now();
   inFlight = true;
   setButtons(false, false, false);
-  const reply = $("reply");
-  text(reply, "sending…");
-  reply.className = "reply";
+  say("sending…");
+  const payload = { duel_id: d.duel_id, first_id: d.a.id, second_id: d.b.id, choice };
+  if (choice !== "skip") {
+    const note = $("answer-note").value.trim();
+    const name = $("judge-name").value.trim();
+    if (note) payload.note = note.slice(0, 1000);
+    if (name) payload.judge = name.slice(0, 80);
+    if (watch.key === `${d.duel_id}:${d.a.id}:${d.b.id}`) {
+      payload.visible_seconds = Math.round(visibleSeconds() * 1000) / 1000;
+      payload.hidden = watch.hidden;
+    }
+  }
   try {
-    const r = await fetch("api/answer", {
-      method: "POST",
-      headers: { "Content-Type": "application/json" },
-      body: JSON.stringify({ duel_id: d.duel_id, first_id: d.a.id, second_id: d.b.id, choice }),
-    });
-    const body = await r.json().catch(() => ({ detail: "unreadable reply" }));
+    const [r, body] = await post("api/answer", payload);
     if (r.ok && body.skipped !== undefined) {
-      text(reply, body.alone ? `Skipped duel ${d.duel_id}; no other duel is waiting, so it comes back.`
-        : `Skipped duel ${d.duel_id}; it comes back later.`);
-      reply.className = "reply ok";
+      say(body.alone ? `Skipped duel ${d.duel_id}; no other duel is waiting, so it comes back.`
+        : `Skipped duel ${d.duel_id}; it comes back later.`, "ok");
+      shownKey = "";
     } else if (r.ok) {
-      answered = { id: d.duel_id, at: performance.now() };
       answeredIds.add(d.duel_id);
-      text(reply, `Recorded: duel ${d.duel_id}, ${body.answer}.`);
-      reply.className = "reply ok";
+      $("answer-note").value = "";
+      say(`Recorded: duel ${d.duel_id}, ${body.answer}.`, "ok");
     } else {
-      text(reply, `Not recorded (HTTP ${r.status}, ${body.field || "?"}: ${body.reason || "?"}): ` +
-        `${body.detail || ""}`);
-      reply.className = "reply err";
+      say(`Not recorded (HTTP ${r.status}, ${body.field || "?"}: ${body.reason || "?"}): ` +
+        `${body.detail || ""}`, "err");
     }
   } catch (e) {
-    text(reply, "Not recorded: the judge did not answer (" + e.message + "). Try again.");
-    reply.className = "reply err";
+    say("Not recorded: the judge did not answer (" + e.message + "). Try again.", "err");
   }
   inFlight = false;
-  replies += 1;
-  refresh();
+  if (!streamOpen) refresh(); else render();
+}
+
+async function undo() {
+  const u = state && state.undo;
+  if (!u || inFlight) {
+    if (!inFlight) say("Nothing to undo" + (state && state.retracting && state.retracting.length
+      ? ": an undo is already on its way." : "."), "warn");
+    return;
+  }
+  inFlight = true;
+  $("undo").disabled = true;
+  try {
+    const [r, body] = await post("api/undo", { duel_id: u.duel_id });
+    if (r.ok) {
+      answeredIds.delete(u.duel_id);
+      say(`Undone: duel ${u.duel_id} (${body.answer}); it comes back once the optimizer asks again.`,
+        "ok");
+    } else {
+      say(`Not undone (HTTP ${r.status}, ${body.reason || "?"}): ${body.detail || ""}`, "err");
+    }
+  } catch (e) {
+    say("Not undone: the judge did not answer (" + e.message + ").", "err");
+  }
+  inFlight = false;
+  if (!streamOpen) refresh(); else render();
+}
+
+// A key that cannot be taken is refused where the person looks, never dropped silently.
+function tryAnswer(choice, keyName) {
+  if (review) { say(`Key ${keyName} not taken: you are reviewing a past duel (Esc goes back).`, "warn"); return; }
+  const d = state && state.duel;
+  const label = { a: "A better", b: "B better", tie: "can't tell", skip: "skip" }[choice];
+  let why = "";
+  if (inFlight) why = "the previous answer is still being sent";
+  else if (!d || answeredIds.has(d.duel_id)) why = "no duel is ready yet (the next one is being prepared)";
+  else if (choice !== "skip" && !d.ready) why = `duel ${d.duel_id} is waiting for its episode results`;
+  else if (choice === "tie" && !state.run.ties) why = "this run does not take can't-tell answers";
+  if (why) { say(`Key ${keyName} (${label}) not taken: ${why}.`, "warn"); return; }
+  answer(choice, keyName);
 }
 
 // ------------------------------------------------------------------ replay
+function episodeSeconds(r) { return r.steps * r.dt; }
+
 function duration() {
   let t = 0;
-  for (const r of [replay.a, replay.b]) if (r) t = Math.max(t, r.steps * r.dt);
+  for (const r of [replay.a, replay.b]) if (r) t = Math.max(t, episodeSeconds(r));
   return t;
 }
 
+// Episode seconds per screen second: the chosen speed, lowered so that the episodes last at
+// least MIN_SCREEN_S on screen.
+function effectiveRate() {
+  const total = duration();
+  if (total <= 0) return speed;
+  return Math.min(speed, total / MIN_SCREEN_S);
+}
+
 function now() {
-  const t = replay.playing ? replay.offset + (performance.now() - replay.start) / 1000 : replay.offset;
+  const t = replay.playing
+    ? replay.offset + effectiveRate() * (performance.now() - replay.start) / 1000 : replay.offset;
   return Math.min(t, duration());
 }
 
@@ -261,15 +493,32 @@ function setPlaying(on) {
   text($("play"), on ? "Pause" : "Play");
 }
 
+function setSpeed(value) {
+  const t = now();
+  speed = value;
+  replay.offset = t;
+  replay.start = performance.now();
+  $("speed").value = String(value);
+  if (store) store.setItem("localpbo.speed", String(value));
+}
+
+function frameAt(r, t) {
+  const n = r.frames.length;
+  const x = Math.min(t / r.dt / r.stride, n - 1);
+  const i = Math.floor(x), f = x - i;
+  const a = r.frames[i], b = r.frames[Math.min(i + 1, n - 1)];
+  if (f === 0 || a === b) return a;
+  return a.map((s, k) => s.map((v, j) => v + f * (b[k][j] - v)));
+}
+
 function draw(side, t) {
   const r = replay[side];
   const canvas = $("canvas-" + side);
   if (!r || canvas.hidden) return;
   const ctx = canvas.getContext("2d");
   const W = canvas.width, H = canvas.height;
-  const n = r.frames.length;
-  const idx = Math.min(Math.floor(t / r.dt / r.stride), n - 1);
-  const segs = r.frames[idx];
+  const end = episodeSeconds(r);
+  const segs = frameAt(r, Math.min(t, end));
   const topView = r.axes[1] !== "z";
   let cu = 0, cv = 0;
   for (const s of segs) { cu += (s[0] + s[2]) / 2; cv += (s[1] + s[3]) / 2; }
@@ -295,21 +544,40 @@ function draw(side, t) {
     ctx.beginPath(); ctx.moveTo(X(s[0]), Y(s[1])); ctx.lineTo(X(s[2]), Y(s[3])); ctx.stroke();
   });
   ctx.fillStyle = "#333";
-  ctx.fillText(`t = ${Math.min(t, r.steps * r.dt).toFixed(2)} s   x = ${cu.toFixed(2)} m`, 8, 14);
+  ctx.font = "13px sans-serif";
+  ctx.fillText(`t = ${Math.min(t, end).toFixed(2)} s   x = ${cu.toFixed(2)} m`, 8, 16);
+  if (t >= end && r.terminated) {
+    ctx.fillStyle = "#b00020";
+    ctx.fillText(`fell at ${end.toFixed(2)} s`, 8, 34);
+  }
 }
 
+let loopWait = null;
 function tick() {
   const total = duration();
   if (total > 0) {
     const t = now();
-    if (replay.playing && t >= total) setPlaying(false);
+    if (replay.playing && t >= total) {
+      if (!$("loop").checked) setPlaying(false);
+      else if (loopWait === null) loopWait = performance.now();
+      else if (performance.now() - loopWait > LOOP_PAUSE_S * 1000) { loopWait = null; restart(); }
+    }
     draw("a", t); draw("b", t);
     $("scrub").value = String(Math.round(1000 * t / total));
-    text($("clock"), `${t.toFixed(1)} / ${total.toFixed(1)} s`);
+    text($("clock"), `${t.toFixed(2)} / ${total.toFixed(2)} s`);
+    const rate = effectiveRate();
+    text($("rate"), rate < speed
+      ? `slowed to ${rate.toFixed(2)}×: the longer episode lasts ${total.toFixed(2)} s, so it ` +
+        `plays over ${(total / rate).toFixed(1)} s`
+      : `playing at ${rate}×`);
   }
   requestAnimationFrame(tick);
 }
 
+// ------------------------------------------------------------------ controls and keys
+$("speed").value = String(speed);
+$("speed").addEventListener("change", (e) => { setSpeed(Number(e.target.value)); e.target.blur(); });
+$("loop").addEventListener("change", (e) => e.target.blur());
 $("play").addEventListener("click", () => {
   if (!replay.playing && now() >= duration()) restart(); else setPlaying(!replay.playing);
 });
@@ -320,17 +588,51 @@ $("scrub").addEventListener("input", (e) => {
   replay.playing = false;
   text($("play"), "Play");
 });
+$("scrub").addEventListener("change", (e) => e.target.blur());
 for (const b of document.querySelectorAll(".answer")) {
   b.addEventListener("click", () => answer(b.dataset.choice));
 }
-document.addEventListener("keydown", (e) => {
-  if (e.ctrlKey || e.metaKey || e.altKey || e.target.tagName === "INPUT") return;
-  const choice = { ArrowLeft: "a", a: "a", ArrowRight: "b", b: "b", ArrowDown: "tie", t: "tie",
-    s: "skip" }[e.key];
-  if (choice) { e.preventDefault(); answer(choice); return; }
-  if (e.key === " ") { e.preventDefault(); $("play").click(); }
-  if (e.key === "r") restart();
+$("undo").addEventListener("click", undo);
+$("review-back").addEventListener("click", endReview);
+$("judge-name").addEventListener("change", (e) => {
+  if (store) store.setItem("localpbo.judge", e.target.value.trim());
 });
 
-refresh();
+const ANSWER_KEYS = { ArrowLeft: "a", a: "a", ArrowRight: "b", b: "b", ArrowDown: "tie",
+  t: "tie", s: "skip" };
+
+// Capture phase: the keys answer whatever has the focus (a slider, a button, a checkbox);
+// only a text box keeps its typing (Esc leaves it).
+window.addEventListener("keydown", (e) => {
+  const el = e.target;
+  const typing = el && (el.tagName === "TEXTAREA" ||
+    (el.tagName === "INPUT" && el.type === "text"));
+  if (typing) {
+    if (e.key === "Escape") { el.blur(); e.preventDefault(); }
+    return;
+  }
+  if (e.altKey || e.metaKey) return;
+  if (e.ctrlKey) {
+    if (e.key === "z" || e.key === "Z") { e.preventDefault(); e.stopPropagation(); undo(); }
+    return;
+  }
+  const choice = ANSWER_KEYS[e.key];
+  if (choice) {
+    e.preventDefault(); e.stopPropagation();
+    if (!e.repeat) tryAnswer(choice, e.key.replace("Arrow", "").toLowerCase());
+    return;
+  }
+  const handled = () => { e.preventDefault(); e.stopPropagation(); };
+  if (e.key === " ") { handled(); $("play").click(); }
+  else if (e.key === "r") { handled(); restart(); }
+  else if (e.key === "u") { handled(); undo(); }
+  else if (e.key === "Escape") { handled(); endReview(); }
+  else if (e.key === "+" || e.key === "=" || e.key === "-") {
+    handled();
+    const i = SPEEDS.indexOf(speed) + (e.key === "-" ? -1 : 1);
+    setSpeed(SPEEDS[Math.max(0, Math.min(SPEEDS.length - 1, i))]);
+  }
+}, true);
+
+connect();
 requestAnimationFrame(tick);
