@@ -7,9 +7,10 @@ optimizer through a :class:`Session`, so they cannot disagree:
 * **Settings**: a run is built from :class:`~localpbo_core.settings.RunSettings`; building a
   session validates them (problem, algorithm, options) and raises
   :class:`~localpbo_core.settings.SettingError` naming the field.
-* **Ids**: candidate ids are the optimizer's ids (0, 1, 2, ... in proposal order); the id of
-  a duel is its index in the optimizer's history (0, 1, 2, ... in ask order), so a rebuilt
-  run reissues the same ids.
+* **Ids**: run-level and monotone. Candidate ids are 0, 1, 2, ... in proposal order and duel
+  ids 0, 1, 2, ... in ask order (the optimizer's own indices while nothing was retracted), so
+  a rebuilt run reissues the same ids; an id handed out once is never reused, not even after a
+  retraction discarded its candidate or duel.
 * **Seeds** (:mod:`localpbo_core.seeds`): candidate ``k`` is evaluated once with
   ``episode_seed(run seed, k)`` on the parameters ``problem.to_native(theta)`` — the very
   numbers a simulator or controller receives — and duel ``k`` is answered by the simulated
@@ -21,6 +22,12 @@ optimizer through a :class:`Session`, so they cannot disagree:
   answers (``AnswerKind.INDIFFERENT``) are accepted iff the run's ``tie_threshold`` is > 0
   (told as :class:`~localpbo_core.optimizers.base.Indifferent`), else refused with
   ``UNSUPPORTED_KIND``.
+* **Retraction** (:meth:`Session.retract`, a person's undo): the latest accepted answer can be
+  taken back, and then the one before it, up to ``undo_depth`` answers. The session returns to
+  the state it had just before that answer (a fork kept when the answer was offered, so
+  exactly the state a run that never got the answer has), the duel is pending again under its
+  id, and duels asked since are withdrawn (answers to them get ``WITHDRAWN``). Candidates and
+  duels proposed meanwhile keep their spent ids; the next ones get fresh ids.
 
 Same settings and the same answers therefore give bit-identical candidates on every path.
 """
@@ -28,6 +35,7 @@ Same settings and the same answers therefore give bit-identical candidates on ev
 from __future__ import annotations
 
 import copy
+import dataclasses
 import enum
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -139,6 +147,12 @@ class Reason(enum.Enum):
     """The optimizer's own checks refused the answers of the ask (nothing changed)."""
     NOT_RUNNING = "not_running"
     """For adapters: the run has not started or has ended."""
+    WITHDRAWN = "withdrawn"
+    """The duel was withdrawn: a retraction took back an answer it was asked after."""
+    RETRACTED = "retracted"
+    """A retraction accepted (:meth:`Session.retract`): the answer is taken back."""
+    RETRACTION_REFUSED = "retraction_refused"
+    """A retraction that cannot be honoured (the detail says why); nothing changed."""
 
 
 @dataclass(frozen=True)
@@ -175,17 +189,28 @@ class Session:
             ``optimizer_options.<key>``, ``problem_options.<key>``).
     """
 
-    def __init__(self, settings: RunSettings, problem: Problem | None = None) -> None:
+    def __init__(
+        self, settings: RunSettings, problem: Problem | None = None, *, undo_depth: int = 0
+    ) -> None:
         from localpbo_core.threads import use_fast_threads
 
         use_fast_threads()
+        if isinstance(undo_depth, bool) or not isinstance(undo_depth, int) or undo_depth < 0:
+            raise SettingError("undo_depth", f"must be an integer >= 0, got {undo_depth!r}")
         self.settings = settings
         self.problem: Problem = build_problem(settings) if problem is None else problem
         self.optimizer: PreferenceOptimizer = build_optimizer(settings, self.problem.dim)
+        self.undo_depth = undo_depth
         self.accepted: list[Answer] = []
         self._pending: dict[int, DuelRequest] = {}
         self._step_answers: dict[int, Answer] = {}
         self._by_duel: dict[int, Answer] = {}
+        # run ids of the optimizer's candidates and duels (by optimizer index); identity until
+        # a retraction discards some, then the next ones continue from the counters
+        self._candidate_ids: list[int] = []
+        self._duel_ids: list[int] = []
+        self._spent = _Spent()
+        self._undo: tuple[Session, ...] = ()  # states before the latest answers, oldest first
         self.oracle()  # validates the noise against the problem's value range
 
     # ------------------------------------------------------------------ state
@@ -216,8 +241,29 @@ class Session:
         return self.optimizer.evaluations_used
 
     def candidate(self, candidate_id: int) -> Candidate:
-        """An already proposed candidate (θ in [0,1]^d)."""
-        return self.optimizer.history.candidates[candidate_id]
+        """An already proposed candidate of the current state (θ in [0,1]^d), by run id.
+
+        Raises:
+            KeyError: no such candidate (never proposed, or discarded by a retraction).
+        """
+        try:
+            index = self._candidate_ids.index(candidate_id)
+        except ValueError:
+            raise KeyError(f"candidate {candidate_id} is not in the run's state") from None
+        return self._run_candidate(index)
+
+    def _run_candidate(self, index: int) -> Candidate:
+        cand = self.optimizer.history.candidates[index]
+        run_id = self._candidate_ids[index]
+        return cand if cand.id == run_id else dataclasses.replace(cand, id=run_id)
+
+    def _run_of(self, cand: Candidate | None) -> Candidate | None:
+        return None if cand is None else self._run_candidate(cand.id)
+
+    @property
+    def spent_ids(self) -> tuple[int, int]:
+        """(candidate ids, duel ids) handed out so far: the next ones get these numbers."""
+        return self._spent.candidates, self._spent.duels
 
     def native(self, theta: np.ndarray) -> np.ndarray:
         """θ in the problem's own units (what a simulator or controller receives)."""
@@ -261,14 +307,14 @@ class Session:
     @property
     def incumbent(self) -> Candidate | None:
         """The preference-defined best so far (king of the hill)."""
-        return self.optimizer.incumbent
+        return self._run_of(self.optimizer.incumbent)
 
     def recommendation(self) -> Candidate | None:
         """The evaluated candidate with the highest posterior mean utility given every duel
         (:func:`localpbo_core.optimizers.recommendation.recommend`)."""
         from localpbo_core.optimizers.recommendation import recommend
 
-        return recommend(self.optimizer)
+        return self._run_of(recommend(self.optimizer))
 
     def fork(self) -> Session:
         """An independent copy of the run's state: the optimizer is deep-copied, the problem
@@ -280,19 +326,45 @@ class Session:
         twin._pending = dict(self._pending)
         twin._step_answers = dict(self._step_answers)
         twin._by_duel = dict(self._by_duel)
+        twin._candidate_ids = list(self._candidate_ids)
+        twin._duel_ids = list(self._duel_ids)
+        twin._spent = self._spent.copy()
         return twin
+
+    def _snapshot(self) -> Session:
+        """A fork kept for :meth:`retract` (holding no older snapshots: memory stays bounded)."""
+        state = self.fork()
+        state._undo = ()
+        return state
+
+    def _restore(self, state: Session) -> None:
+        """Take over ``state`` (an earlier fork of this run), keeping the spent ids."""
+        spent = self._spent
+        self.__dict__.update(state.__dict__)
+        self._spent = spent.copy()
 
     # ------------------------------------------------------------------ ask / offer
     def ask(self) -> Step:
         """The next work (call only when no duel is pending and the run is not done)."""
         if self._pending:
             raise RuntimeError("ask: duels of the previous ask are still pending")
-        first_id = len(self.optimizer.history.duels)
         ask = self.optimizer.ask()
-        duels = tuple(DuelRequest(first_id + i, d.first, d.second) for i, d in enumerate(ask.duels))
+        for _ in range(len(self.optimizer.history.candidates) - len(self._candidate_ids)):
+            self._candidate_ids.append(self._spent.candidates)
+            self._spent.candidates += 1
+        duels = []
+        for d in ask.duels:
+            duels.append(
+                DuelRequest(
+                    self._spent.duels, self._candidate_ids[d.first], self._candidate_ids[d.second]
+                )
+            )
+            self._duel_ids.append(self._spent.duels)
+            self._spent.duels += 1
         self._pending = {d.duel_id: d for d in duels}
         self._step_answers = {}
-        return Step(ask.candidates, duels)
+        candidates = tuple(self._run_candidate(c.id) for c in ask.candidates)
+        return Step(candidates, tuple(duels))
 
     def offer(self, answer: Answer) -> Verdict:
         """Accept ``answer`` if it answers a pending duel; never raises, never changes state
@@ -301,8 +373,12 @@ class Session:
         if duel is None:
             if self._by_duel.get(answer.duel_id) == answer:
                 return Verdict(Reason.DUPLICATE, f"duel {answer.duel_id} answered again")
-            if 0 <= answer.duel_id < len(self.optimizer.history.duels):
+            if answer.duel_id in self._by_duel:
                 return Verdict(Reason.REPEATED, f"duel {answer.duel_id} is already answered")
+            if 0 <= answer.duel_id < self._spent.duels:
+                return Verdict(
+                    Reason.WITHDRAWN, f"duel {answer.duel_id} was withdrawn by a retraction"
+                )
             return Verdict(Reason.UNKNOWN_DUEL, f"duel {answer.duel_id} was never asked")
         if (answer.first, answer.second) != (duel.first, duel.second):
             return Verdict(
@@ -326,11 +402,12 @@ class Session:
             return Verdict(
                 Reason.BAD_WINNER, f"winner {answer.winner} is not in duel {duel.duel_id}"
             )
+        before = self._snapshot() if self.undo_depth else None
         remaining = {k: d for k, d in self._pending.items() if k != duel.duel_id}
         if not remaining:  # the ask is complete: tell every answer, in duel-id order
             answers = sorted([*self._step_answers.values(), answer], key=lambda a: a.duel_id)
             try:
-                self.optimizer.tell([_outcome(a) for a in answers])
+                self.optimizer.tell([self._outcome(a) for a in answers])
             except InvalidOutcome as exc:  # the optimizer's own checks; nothing changed
                 return Verdict(Reason.REJECTED, str(exc))
             self._step_answers = {}
@@ -339,14 +416,61 @@ class Session:
         self._pending = remaining
         self.accepted.append(answer)
         self._by_duel[answer.duel_id] = answer
+        if before is not None:
+            self._undo = (*self._undo, before)[-self.undo_depth :]
         return Verdict(Reason.ACCEPTED)
 
+    def retract(self, duel_id: int) -> Verdict:
+        """Take back the answer to ``duel_id`` (a person's undo); never raises.
 
-def _outcome(answer: Answer) -> DuelAnswer:
-    if answer.kind is AnswerKind.INDIFFERENT:
-        return Indifferent(answer.first, answer.second)
-    assert answer.winner is not None and answer.loser is not None
-    return Outcome(answer.winner, answer.loser)
+        Accepted (``Reason.RETRACTED``) iff it is the latest accepted answer and one of the
+        last ``undo_depth``: the session then is exactly as it was just before that answer was
+        offered (the duel pending again under its id; duels asked since withdrawn), except
+        that ids handed out meanwhile stay spent. Otherwise ``RETRACTION_REFUSED`` with the
+        reason, and nothing changes.
+        """
+        if not self.accepted:
+            return Verdict(Reason.RETRACTION_REFUSED, "no answer to take back")
+        latest = self.accepted[-1].duel_id
+        if duel_id != latest:
+            if duel_id in self._by_duel:
+                why = f"duel {duel_id} is not the latest answer (duel {latest} is)"
+            else:
+                why = f"duel {duel_id} has no accepted answer"
+            return Verdict(Reason.RETRACTION_REFUSED, why)
+        if not self._undo:
+            return Verdict(
+                Reason.RETRACTION_REFUSED,
+                f"only the last {self.undo_depth} answers can be taken back",
+            )
+        *older, state = self._undo
+        self._restore(state.fork())
+        self._undo = tuple(older)
+        return Verdict(Reason.RETRACTED, f"answer to duel {duel_id} taken back")
+
+    def undoable(self) -> int:
+        """How many of the latest answers :meth:`retract` can take back, one after another."""
+        return len(self._undo)
+
+    def _outcome(self, answer: Answer) -> DuelAnswer:
+        """The optimizer's outcome of ``answer`` (run ids mapped to its indices)."""
+        first = self._candidate_ids.index(answer.first)
+        second = self._candidate_ids.index(answer.second)
+        if answer.kind is AnswerKind.INDIFFERENT:
+            return Indifferent(first, second)
+        assert answer.winner is not None
+        return Outcome(first, second) if answer.winner == answer.first else Outcome(second, first)
+
+
+@dataclass
+class _Spent:
+    """Ids handed out so far (shared by nothing: each fork copies it)."""
+
+    candidates: int = 0
+    duels: int = 0
+
+    def copy(self) -> _Spent:
+        return _Spent(self.candidates, self.duels)
 
 
 def build_problem(settings: RunSettings) -> Problem:

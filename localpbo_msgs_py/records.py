@@ -246,11 +246,13 @@ class DuelRequest:
 
 
 class OutcomeKind(StrEnum):
-    """How a duel ended: a winner and a loser, neither preferred, or not judged (failed)."""
+    """How a duel ended: a winner and a loser, neither preferred, or not judged (failed);
+    or ``retracted``: the answer given to the duel is taken back (a person's undo)."""
 
     DECISIVE = "decisive"
     INDIFFERENT = "indifferent"
     FAILED = "failed"
+    RETRACTED = "retracted"
 
 
 @dataclass(frozen=True)
@@ -258,10 +260,16 @@ class DuelOutcome:
     """The oracle's answer to a duel request (oracle → optimizer).
 
     Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (echo the request), ``kind``
-    (``decisive``|``indifferent``|``failed``); ``winner_id`` and ``loser_id`` iff decisive (a
-    permutation of first/second); ``reason`` (non-empty text) iff failed; optional
-    ``answer_seconds`` (finite float >= 0, never when failed): how long a person took from
-    seeing the duel to answering it (set by ``judge_node``; absent for the simulated oracle).
+    (``decisive``|``indifferent``|``failed``|``retracted``); ``winner_id`` and ``loser_id`` iff
+    decisive (a permutation of first/second); ``reason`` (non-empty text) iff failed; optional
+    ``answer_seconds`` (finite float >= 0, never when failed or retracted): how long a person
+    took from seeing the duel to answering it (set by ``judge_node``; absent for the simulated
+    oracle).
+
+    ``retracted`` (only ``judge_node``, a person's undo) takes back the answer given to duel
+    ``duel_id``: the optimizer returns to its state before that answer and requests the duel
+    again under the same id; duels it requested after that answer are withdrawn (their ids
+    are never reused). A retraction it cannot honour is counted (``retraction_refused``).
     """
 
     run_id: str
@@ -288,9 +296,9 @@ class DuelOutcome:
                     "answer_seconds", R.OUT_OF_BOUNDS, f"must be >= 0, got {seconds!r}"
                 )
             _require(
-                self.kind is not OutcomeKind.FAILED,
+                self.kind not in (OutcomeKind.FAILED, OutcomeKind.RETRACTED),
                 "answer_seconds",
-                "must be absent when failed",
+                f"must be absent when {self.kind}",
             )
             object.__setattr__(self, "answer_seconds", seconds)
         if self.kind is OutcomeKind.DECISIVE:
@@ -347,6 +355,17 @@ class DuelOutcome:
             request.second_id,
             OutcomeKind.INDIFFERENT,
             answer_seconds=answer_seconds,
+        )
+
+    @classmethod
+    def retracted(cls, request: DuelRequest) -> DuelOutcome:
+        """The answer given to ``request``'s duel is taken back."""
+        return cls(
+            request.run_id,
+            request.duel_id,
+            request.first_id,
+            request.second_id,
+            OutcomeKind.RETRACTED,
         )
 
     @classmethod
@@ -428,6 +447,10 @@ class DuelOutcome:
                 return cls(
                     run_id, duel_id, first, second, OutcomeKind.INDIFFERENT, answer_seconds=seconds
                 )
+            if kind is OutcomeKind.RETRACTED:
+                require_keys(v, base, context=" (must be absent when kind is retracted)")
+                _check_level(level, LEVEL_OK)
+                return cls(run_id, duel_id, first, second, OutcomeKind.RETRACTED)
             require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
             _check_level(level, LEVEL_ERROR)
             return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])

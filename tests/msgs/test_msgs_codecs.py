@@ -62,6 +62,7 @@ def all_values(rng: np.random.Generator) -> list[Any]:
         DuelOutcome.failed(REQ, "episode of candidate 9 failed"),
         DuelOutcome.decisive(REQ, 9, answer_seconds=float(rng.exponential(10.0))),
         DuelOutcome.indifferent(REQ, answer_seconds=0.0),
+        DuelOutcome.retracted(REQ),
         RunConfig(
             "run-7",
             "gipbo",
@@ -461,6 +462,34 @@ CASES: list[tuple[str, Callable[[Any], Any], Any, str, str]] = [
         "must be absent",
     ),
     (
+        "out-retracted-with-winner",
+        DuelOutcome.decode,
+        dout(kind="retracted"),
+        "winner_id",
+        "must be absent",
+    ),
+    (
+        "out-retracted-with-seconds",
+        DuelOutcome.decode,
+        dout(kind="retracted", winner_id=None, loser_id=None, answer_seconds="1.5"),
+        "answer_seconds",
+        "must be absent",
+    ),
+    (
+        "out-retracted-with-reason",
+        DuelOutcome.decode,
+        dout(kind="retracted", winner_id=None, loser_id=None, reason="oops"),
+        "reason",
+        "must be absent",
+    ),
+    (
+        "out-retracted-error-level",
+        DuelOutcome.decode,
+        dout(2, kind="retracted", winner_id=None, loser_id=None),
+        "level",
+        "expected 0",
+    ),
+    (
         "out-failed-no-reason",
         DuelOutcome.decode,
         dout(2, kind="failed", winner_id=None, loser_id=None),
@@ -632,6 +661,10 @@ REASONS: dict[str, DecodeReason] = {
     "out-winner-is-loser": _R.INCONSISTENT,
     "out-decisive-no-loser": _R.MALFORMED,
     "out-indifferent-with-winner": _R.MALFORMED,
+    "out-retracted-with-winner": _R.MALFORMED,
+    "out-retracted-with-seconds": _R.MALFORMED,
+    "out-retracted-with-reason": _R.MALFORMED,
+    "out-retracted-error-level": _R.INCONSISTENT,
     "out-failed-no-reason": _R.MALFORMED,
     "out-failed-empty-reason": _R.MALFORMED,
     "out-unknown-kind": _R.MALFORMED,
@@ -720,6 +753,9 @@ def test_good_messages_built_by_hand_decode() -> None:
     assert DuelOutcome.decode(
         dout(kind="indifferent", winner_id=None, loser_id=None, answer_seconds="3")
     ) == DuelOutcome("r1", 0, 1, 2, OutcomeKind.INDIFFERENT, answer_seconds=3.0)
+    assert DuelOutcome.decode(dout(kind="retracted", winner_id=None, loser_id=None)) == DuelOutcome(
+        "r1", 0, 1, 2, OutcomeKind.RETRACTED
+    )
     assert RunConfig.decode(config_json()) == GOOD_CONFIG
     assert Status.decode(status_msg(ST)) == Status("r1", "optimizer", "running")
 

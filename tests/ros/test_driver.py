@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from localpbo_ros.driver import Driver, rebuild
@@ -153,3 +155,168 @@ def test_run_config_records_the_noise_scale_and_old_configs_keep_theirs() -> Non
     synthetic = make_run_config("vr", RunSettings(algorithm="sobol", problem="hartmann6"))
     assert synthetic.options["task"] == {}
     assert settings_of(synthetic).problem_options == {}
+
+
+def _retraction_run(bag: Path | None = None) -> tuple[Driver, list[DuelOutcome], dict[str, int]]:
+    """A Hartmann run whose person takes back two answers (the second after re-answering the
+    first differently), with one refused retraction; written to ``bag`` as a node would."""
+    from localpbo_ros.driver import make_run_config
+
+    from localpbo_core.settings import RunSettings
+    from localpbo_msgs_py import EpisodeResult
+    from localpbo_msgs_py.bag import BagWriter
+    from localpbo_msgs_py.topics import (
+        ALL_TOPICS,
+        CANDIDATE,
+        DUEL_OUTCOME,
+        DUEL_REQUEST,
+        EPISODE_RESULT,
+        RUN_CONFIG,
+    )
+
+    settings = RunSettings(
+        algorithm="turpbo", problem="hartmann6", seed=3, budget=12, tie_threshold=0.5
+    )
+    cfg = make_run_config("undo", settings)
+    drv = Driver(cfg)
+    problem = make_problem("hartmann6")
+    writer = BagWriter(bag) if bag is not None else None
+    if writer is not None:
+        writer.add_suite_topics(ALL_TOPICS)
+        writer.write(RUN_CONFIG.name, cfg.encode())
+    outcomes: list[DuelOutcome] = []
+    values: dict[int, float] = {}
+    counts = {"retracted": 0, "refused": 0}
+
+    def publish(work) -> None:  # type: ignore[no-untyped-def]
+        for c in work.candidates:
+            values[c.candidate_id] = float(problem.evaluate_native(np.asarray(c.theta), 0))
+            if writer is not None:
+                writer.write(CANDIDATE.name, c.encode())
+                res = EpisodeResult.ok(cfg.run_id, c.candidate_id, values[c.candidate_id])
+                writer.write(EPISODE_RESULT.name, res.encode())
+        if writer is not None:
+            for r in work.requests:
+                writer.write(DUEL_REQUEST.name, r.encode())
+
+    def send(out: DuelOutcome) -> None:
+        outcomes.append(out)
+        if writer is not None:
+            writer.write(DUEL_OUTCOME.name, out.encode())
+        verdict = drv.offer(out)
+        if out.kind.value == "retracted":
+            key = "retracted" if verdict.reason.value == "retracted" else "refused"
+            counts[key] += 1
+            if key == "retracted":  # the node publishes the duel again
+                publish(type(work)((), drv.pending_requests()))
+            return
+        assert verdict.accepted, verdict
+        if not drv.step_open and not drv.done:
+            publish(drv.ask())
+
+    work = drv.ask()
+    publish(work)
+    n = 0
+    while not drv.done:
+        (req,) = drv.pending_requests()
+        best = req.first_id if values[req.first_id] > values[req.second_id] else req.second_id
+        worst = req.second_id if best == req.first_id else req.first_id
+        if n == 6:  # a slip of the finger, taken back at once
+            send(DuelOutcome.decisive(req, worst))
+            send(DuelOutcome.retracted(req))
+        if n == 8:  # answered, next one answered too, both taken back, latest first
+            send(DuelOutcome.decisive(req, worst))
+            (nxt,) = drv.pending_requests()
+            send(DuelOutcome.indifferent(nxt))
+            send(DuelOutcome.retracted(req))  # not the latest: refused
+            send(DuelOutcome.retracted(nxt))
+            send(DuelOutcome.retracted(req))
+        send(DuelOutcome.decisive(req, best))
+        n += 1
+    if writer is not None:
+        writer.close()
+    return drv, outcomes, counts
+
+
+def test_retractions_rebuild_the_same_run_and_spend_no_id_twice() -> None:
+    drv, outcomes, counts = _retraction_run()
+    assert counts == {"retracted": 3, "refused": 1} and drv.retracted == 3
+    again = rebuild(drv.config, outcomes)
+    assert again.driver.done and again.retracted == 3 and again.refused == 1
+    ids = [c.candidate_id for c in again.proposed]
+    assert len(ids) == len(set(ids)) == 12 + 3  # three discarded candidates keep their ids
+    assert [c.theta.tobytes() for c in again.driver.session.optimizer.history.candidates] == [
+        c.theta.tobytes() for c in drv.session.optimizer.history.candidates
+    ]
+    duel_ids = [r.duel_id for r in again.requests]
+    assert len(duel_ids) == len(set(duel_ids))
+    # the retracted run is the run that only got the kept answers
+    kept = [o for o in drv.accepted]
+    plain = Driver(drv.config)
+    plain.ask()
+    for out in kept:
+        (req,) = plain.pending_requests()
+        if out.winner_id is None:
+            answer = DuelOutcome.indifferent(req)
+        else:
+            # ids differ after a retraction: map the winner by its side of the duel
+            answer = DuelOutcome.decisive(
+                req, req.first_id if out.winner_id == out.first_id else req.second_id
+            )
+        assert plain.offer(answer).accepted
+        if not plain.step_open and not plain.done:
+            plain.ask()
+    assert plain.done
+    assert [c.theta.tobytes() for c in plain.session.optimizer.history.candidates] == [
+        c.theta.tobytes() for c in drv.session.optimizer.history.candidates
+    ]
+
+
+def test_a_bag_with_retractions_verifies_and_resumes(tmp_path: Path) -> None:
+    from localpbo_ros.bagtools import load_run
+    from localpbo_ros.commands import main as cli_main
+    from localpbo_ros.replay import verify
+
+    bag = tmp_path / "undo.mcap"
+    _, outcomes, _ = _retraction_run(bag)
+    report = verify(bag)
+    assert report.ok, report.format()
+    assert report.candidates_checked == 15 and report.outcomes_used == 11
+    assert cli_main(["replay", "--verify", str(bag)]) == 0
+    # a bag whose recorded retraction is dropped no longer verifies: the check can fail
+    cut = tmp_path / "tampered.mcap"
+    _copy(bag, cut, skip=lambda out: out.kind.value == "retracted")
+    assert not verify(cut).ok
+    # stopped just after the last retraction: the resumed run continues from the same state
+    last = max(i for i, o in enumerate(outcomes) if o.kind.value == "retracted")
+    stop = tmp_path / "stopped.mcap"
+    _copy(bag, stop, keep=last + 1)
+    resumed = tmp_path / "resumed.mcap"
+    assert cli_main(["run", "--resume", str(stop), "--bag", str(resumed), "--no-progress"]) == 0
+    run = load_run(resumed)
+    assert [o.kind.value for o in run.outcomes[: last + 1]] == [
+        o.kind.value for o in outcomes[: last + 1]
+    ]
+    report = verify(resumed)
+    assert report.ok and report.candidates_checked == 15, report.format()
+    prefix = {c.candidate_id: c.theta for c in load_run(stop).candidates.values()}
+    assert {k: run.candidates[k].theta for k in prefix} == prefix
+
+
+def _copy(src: Path, dst: Path, *, keep: int | None = None, skip=None) -> None:  # type: ignore[no-untyped-def]
+    """``src`` up to its ``keep``-th outcome (all by default), without outcomes ``skip``s."""
+    from localpbo_msgs_py.bag import BagWriter, read_messages
+    from localpbo_msgs_py.topics import ALL_TOPICS, DUEL_OUTCOME
+
+    seen = 0
+    with BagWriter(dst) as writer:
+        writer.add_suite_topics(ALL_TOPICS)
+        for rec in read_messages(src):
+            if rec.topic == DUEL_OUTCOME.name:
+                if keep is not None and seen >= keep:
+                    break
+                seen += 1
+                out = DuelOutcome.decode(rec.message)
+                if skip is not None and isinstance(out, DuelOutcome) and skip(out):
+                    continue
+            writer.write(rec.topic, rec.message, log_time_ns=rec.log_time_ns)

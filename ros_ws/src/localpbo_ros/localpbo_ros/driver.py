@@ -15,6 +15,11 @@ the offline verification, the resume rebuild and ``localpbo bench`` cannot disag
   pending duel in a background thread (:mod:`localpbo_core.speculation`); the answer that
   arrives adopts its branch, so :meth:`Driver.ask` returns at once — with exactly the work it
   would have computed.
+* A ``retracted`` outcome (a person's undo) takes back the latest accepted answer
+  (:meth:`Session.retract`, up to :data:`UNDO_DEPTH` answers back, one at a time): the run
+  returns to its state before that answer, the duel is pending again under its id and the
+  duels asked since are withdrawn. The node, ``replay --verify`` and ``run --resume`` all
+  re-feed it through :meth:`Driver.offer`, so they rebuild the same run.
 
 Run-config ``options`` layout::
 
@@ -75,6 +80,9 @@ OPTION_SECTIONS = ("optimizer", "task", "oracle", "failure", "space")
 FAILURE_POLICIES = ("retry", "stop")
 DEFAULT_FAILURE_POLICY = "retry"
 DEFAULT_MAX_RETRIES = 2
+UNDO_DEPTH = 8
+"""How many of the latest answers a person can take back, one after another (each keeps one
+copy of the optimizer's state)."""
 PERSON = "person"
 """``options.oracle.kind`` of a run a person judges (absent: the simulated oracle)."""
 
@@ -226,7 +234,8 @@ def space_settings(settings: RunSettings, space: ParameterSpace) -> RunSettings:
 
 
 def answer_of(outcome: DuelOutcome) -> Answer:
-    """The core answer a decoded outcome message carries."""
+    """The core answer a decoded outcome message carries (not for ``retracted``)."""
+    assert outcome.kind is not OutcomeKind.RETRACTED
     duel = DuelRequest(outcome.duel_id, outcome.first_id, outcome.second_id)
     if outcome.kind is OutcomeKind.DECISIVE:
         assert outcome.winner_id is not None
@@ -259,10 +268,13 @@ class Driver:
     def __init__(self, config: RunConfig, problem: Problem | None = None) -> None:
         self.config = config
         self.session = Session(
-            settings_of(config), problem if problem is not None else problem_of(config)
+            settings_of(config),
+            problem if problem is not None else problem_of(config),
+            undo_depth=UNDO_DEPTH,
         )
         self.accepted: list[DuelOutcome] = []
         self.speculated = 0
+        self.retracted = 0
         self._speculation: Speculation | None = None
         self._shown: Speculation | None = None  # the last one started: its recommendation
         self._prepared: Step | None = None
@@ -361,9 +373,12 @@ class Driver:
             self._speculation = None
 
     def offer(self, outcome: DuelOutcome) -> Verdict:
-        """Offer ``outcome`` to the session (never raises)."""
+        """Offer ``outcome`` to the session (never raises); a ``retracted`` one goes to
+        :meth:`retract`."""
         if outcome.run_id != self.run_id:
             return Verdict(Reason.WRONG_RUN, f"run {outcome.run_id!r}")
+        if outcome.kind is OutcomeKind.RETRACTED:
+            return self.retract(outcome)
         answer = answer_of(outcome)
         spec = self._speculation
         if spec is not None and answer in spec.answers:
@@ -380,14 +395,37 @@ class Driver:
             self.accepted.append(outcome)
         return verdict
 
+    def retract(self, outcome: DuelOutcome) -> Verdict:
+        """Take back the answer to ``outcome.duel_id`` (``Reason.RETRACTED``: the duel is
+        pending again, duels asked since are withdrawn) or refuse (``RETRACTION_REFUSED``
+        with the reason; nothing changes)."""
+        last = self.accepted[-1] if self.accepted else None
+        if last is not None and last.duel_id == outcome.duel_id:
+            if (last.first_id, last.second_id) != (outcome.first_id, outcome.second_id):
+                return Verdict(
+                    Reason.RETRACTION_REFUSED,
+                    f"duel {last.duel_id} is {last.first_id} vs {last.second_id}, the "
+                    f"retraction says {outcome.first_id} vs {outcome.second_id}",
+                )
+        verdict = self.session.retract(outcome.duel_id)
+        if verdict.reason is Reason.RETRACTED:
+            self.cancel_speculation()
+            self._prepared = None
+            self.accepted.pop()
+            self.retracted += 1
+        return verdict
+
 
 @dataclass(frozen=True)
 class Rebuild:
-    """A driver rebuilt from recorded outcomes, with every candidate it proposed on the way."""
+    """A driver rebuilt from recorded outcomes, with every candidate and duel request it
+    handed out on the way (including those a retraction discarded later)."""
 
     driver: Driver
     proposed: tuple[CandidateMsg, ...]
     refused: int
+    retracted: int = 0
+    requests: tuple[DuelRequestMsg, ...] = ()
 
 
 def rebuild(config: RunConfig, outcomes: Iterable[DuelOutcome]) -> Rebuild:
@@ -395,19 +433,30 @@ def rebuild(config: RunConfig, outcomes: Iterable[DuelOutcome]) -> Rebuild:
 
     Uses the node's own acceptance rule (:meth:`Driver.offer`), so the outcomes accepted here
     are the ones the recorded optimizer node accepted. Outcomes that are not accepted
-    (failed duels, duplicates, other runs, ...) are counted in ``refused``.
+    (failed duels, duplicates, other runs, refused retractions, ...) are counted in
+    ``refused``; accepted retractions in ``retracted``.
     """
     driver = Driver(config)
     proposed: list[CandidateMsg] = []
+    requests: list[DuelRequestMsg] = []
+
+    def ask() -> None:
+        work = driver.ask()
+        proposed.extend(work.candidates)
+        requests.extend(work.requests)
+
     refused = 0
     if not driver.done:
-        proposed.extend(driver.ask().candidates)
+        ask()
     for out in outcomes:
         if driver.done:
             break
-        if not driver.offer(out).accepted:
+        verdict = driver.offer(out)
+        if verdict.reason is Reason.RETRACTED:
+            continue  # the duel is pending again: nothing to ask
+        if not verdict.accepted:
             refused += 1
             continue
         if not driver.step_open and not driver.done:
-            proposed.extend(driver.ask().candidates)
-    return Rebuild(driver, tuple(proposed), refused)
+            ask()
+    return Rebuild(driver, tuple(proposed), refused, driver.retracted, tuple(requests))

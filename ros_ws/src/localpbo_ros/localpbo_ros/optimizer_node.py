@@ -22,6 +22,13 @@ answer arrives; what is asked is the same either way. Every duel request carries
 ready). The speculation also computes the current recommendation (highest posterior mean
 utility), announced as ``info.recommended`` in the node's status for the judge's page.
 
+Undo (a person's): a ``retracted`` outcome takes back the latest accepted answer (up to
+``UNDO_DEPTH`` answers back, one at a time; :meth:`localpbo_ros.driver.Driver.retract`). The
+node then publishes that duel's request again under the same id (with its candidates) and
+drops the duels it had asked since (answers to them are dropped as ``withdrawn``; their ids
+are never reused). Counters: ``retractions``, and ``retraction_refused`` (with the reason in
+the log) for one it cannot honour.
+
 Late joiners: while a step is open, the pending duels' candidates and requests are published
 again every ``republish_period_s`` (idempotent for the other nodes).
 
@@ -66,6 +73,7 @@ from localpbo_msgs_py import (
     RunConfig,
     Status,
 )
+from localpbo_msgs_py.records import OutcomeKind
 from localpbo_msgs_py.topics import (
     CANDIDATE,
     DUEL_OUTCOME,
@@ -76,6 +84,7 @@ from localpbo_msgs_py.topics import (
     STATUS,
 )
 from localpbo_ros.base import SuiteNode
+from localpbo_ros.completeness import Published
 from localpbo_ros.driver import (
     DEFAULT_FAILURE_POLICY,
     DEFAULT_MAX_RETRIES,
@@ -342,6 +351,7 @@ class OptimizerNode(SuiteNode):
         self._started = False
         self._waiting_since = time.monotonic()
         self._decision_s: dict[int, float] = {}  # duel id -> decision time of its ask
+        self.published = Published()  # ids sent, in the status: verify finds a bag's gaps
         self._answered_at = 0.0  # when the answer that completed the last ask arrived
         self._cpu0 = 0.0
         self.started_at = 0.0
@@ -361,9 +371,11 @@ class OptimizerNode(SuiteNode):
 
     def status_info(self) -> dict[str, str]:
         """``info.recommended``: the candidate with the highest posterior mean utility, once a
-        speculation has computed it (runs with ``speculate``: a person is judging)."""
+        speculation has computed it (runs with ``speculate``: a person is judging); and the
+        ids published so far (``info.published_candidates``, ``info.published_duels``)."""
         rec = self.driver.prepared_recommendation()
-        return {} if rec is None else {"recommended": str(rec.candidate_id)}
+        info = self.published.info()
+        return info if rec is None else {**info, "recommended": str(rec.candidate_id)}
 
     # ------------------------------------------------------------------ timing
     def _now(self) -> float:
@@ -451,6 +463,7 @@ class OptimizerNode(SuiteNode):
     def _publish_request(self, req: DuelRequest) -> None:
         timed = req.with_decision_seconds(self._decision_s.get(req.duel_id))
         self._pub_request.publish(timed.encode())
+        self.published.duel(req.duel_id)
 
     def _dispatch(
         self,
@@ -498,6 +511,7 @@ class OptimizerNode(SuiteNode):
 
     def _publish_candidate(self, cand: CandidateMsg, worker: str) -> None:
         self._pub_candidate.publish(cand.assigned_to(worker).encode())
+        self.published.candidate(cand.candidate_id)
 
     def _publish_pending(self, retry: bool = False) -> None:
         self._dispatch(again=True, retry=retry)
@@ -541,6 +555,9 @@ class OptimizerNode(SuiteNode):
             return
         if self.finished or not self._started:
             detail = f"duel {decoded.duel_id} arrived while {self.state}"
+            if decoded.kind is OutcomeKind.RETRACTED:
+                self._refuse_retraction(decoded.duel_id, f"the run is {self.state}")
+                return
             self.drop(Reason.NOT_RUNNING.value, detail)
             return
         arrived = self._now()
@@ -551,6 +568,12 @@ class OptimizerNode(SuiteNode):
             return
         if verdict.reason is Reason.DUPLICATE:
             self.counters["outcomes_duplicate"] += 1
+            return
+        if verdict.reason is Reason.RETRACTED:
+            self._retracted(decoded.duel_id)
+            return
+        if verdict.reason is Reason.RETRACTION_REFUSED:
+            self._refuse_retraction(decoded.duel_id, verdict.detail)
             return
         if not verdict.accepted:
             self.drop(verdict.reason.value, verdict.detail)
@@ -574,6 +597,27 @@ class OptimizerNode(SuiteNode):
                 self._next_step()
         else:
             self._speculate()  # the ask's last duel may be the only one left
+
+    def _retracted(self, duel_id: int) -> None:
+        """A person took back the answer to ``duel_id``: the duel is pending again (the same
+        request and candidates go out again), the duels asked after it are withdrawn."""
+        self.counters["retractions"] = self.driver.retracted
+        self.counters["duels_done"] = self.driver.n_duels
+        self.get_logger().info(
+            f"answer to duel {duel_id} taken back; asking it again "
+            f"({self.driver.n_duels} duels answered)"
+        )
+        self._publish_incumbent()
+        self._publish_pending()
+        self._deadline = self._now() + self.settings["duel_timeout_s"]
+        self._speculate()
+
+    def _refuse_retraction(self, duel_id: int, reason: str) -> None:
+        self.counters[Reason.RETRACTION_REFUSED.value] += 1
+        self.warn(
+            Reason.RETRACTION_REFUSED.value,
+            f"retraction of the answer to duel {duel_id} refused: {reason}",
+        )
 
     def _failure(self, duel_id: int, reason: str) -> None:
         policy = self.settings["failure_policy"]

@@ -8,7 +8,12 @@ latched; without it, reliable/volatile/depth 10 as rosbag2 does.
 Verify: rebuild the run from the recorded run config, re-feed the recorded outcomes with the
 node's own acceptance rule (the run protocol of ``localpbo_core.session``: same config and
 outcomes give the same candidates), and check that it proposes exactly the recorded
-candidates (θ compared as decoded floats, never as CDR bytes) and duels.
+candidates (θ compared as decoded floats, never as CDR bytes) and duels. Before the rebuild,
+a bag whose messages cannot be its config's run is refused naming the field or the foreign
+run (``bagtools.history_problem``); a file that is not MCAP is refused as such, one that
+ends early is checked as far as it reads and says so. :func:`resumable` is the same check
+for ``run --resume``. Verify also fails when the bag lacks a message the run published
+(:func:`localpbo_ros.completeness.missing_from_bag`), naming it.
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from rclpy.duration import Duration
@@ -26,7 +31,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from localpbo_msgs_py.bag import message_class, read_messages, summarize
 from localpbo_msgs_py.qos_yaml import parse_offered_qos
-from localpbo_ros.bagtools import load_run
+from localpbo_ros.bagtools import RecordedRun, history_problem, load_run, require_bag
+from localpbo_ros.completeness import missing_from_bag
 from localpbo_ros.driver import rebuild
 
 _HISTORY = {"keep_last": HistoryPolicy.KEEP_LAST, "keep_all": HistoryPolicy.KEEP_ALL}
@@ -86,6 +92,7 @@ def play(
         raise ValueError(f"rate: must be > 0, got {rate}")
     if loops < 0:
         raise ValueError(f"loop: must be >= 0, got {loops}")
+    require_bag(path)
     summary = summarize(path)
     wanted = None if topics is None else set(topics)
     known = {t.topic for t in summary.topics}
@@ -129,9 +136,15 @@ class VerifyReport:
     outcomes_used: int
     unpublished: int
     mismatch: str
+    ends_early: str = ""
+    """What ``bagtools.ends_early`` says of the file (empty: it is whole or unfinished)."""
 
     def format(self) -> str:
-        """``OK ...`` or ``MISMATCH ...``."""
+        """``OK ...`` or ``MISMATCH ...`` (and a note when the file ends early)."""
+        note = f"\nnote: {self.ends_early}; checked what was read" if self.ends_early else ""
+        return self._verdict() + note
+
+    def _verdict(self) -> str:
         if self.ok:
             extra = (
                 (
@@ -149,8 +162,48 @@ class VerifyReport:
 
 
 def verify(path: str | os.PathLike[str]) -> VerifyReport:
-    """Rebuild the optimizer offline and compare with the recorded candidates and duels."""
+    """Rebuild the optimizer offline and compare with the recorded candidates and duels.
+
+    Raises:
+        OSError: the file cannot be read.
+        ValueError: not an MCAP bag (``bagtools.NotABagError``), or no run config in it.
+    """
     run = load_run(path)
+    report = check_run(run, path)
+    gap = missing_from_bag(path, run) if report.ok else None  # what the run sent, not here
+    return report if gap is None else replace(report, ok=False, mismatch=f"{path}: {gap}")
+
+
+def check_run(run: RecordedRun, path: str | os.PathLike[str]) -> VerifyReport:
+    """:func:`verify` of an already loaded run."""
+    problem = history_problem(run)
+    if problem:
+        return VerifyReport(False, 0, 0, 0, 0, f"{path}: {problem}", run.ends_early)
+    return replace(_compare(run), ends_early=run.ends_early)
+
+
+def resumable(path: str | os.PathLike[str]) -> RecordedRun:
+    """The run recorded in ``path`` if ``run --resume`` may continue it: its messages are
+    its config's run and the config rebuilds them (:func:`verify` says OK).
+
+    Raises:
+        OSError: the file cannot be read.
+        ValueError: the reason, naming the file and the field or foreign run.
+    """
+    run = load_run(path)
+    report = check_run(run, path)
+    if not report.ok:
+        detail = report.mismatch
+        if not detail.startswith(str(path)):
+            detail = (
+                f"{path}: its history does not follow from its run config ({detail}); "
+                "`localpbo replay --verify` shows the same"
+            )
+        raise ValueError(detail)
+    return run
+
+
+def _compare(run: RecordedRun) -> VerifyReport:
     rebuilt = rebuild(run.config, run.outcomes)
     proposed = {c.candidate_id: c for c in rebuilt.proposed}
     used = rebuilt.driver.n_duels
@@ -172,16 +225,16 @@ def verify(path: str | os.PathLike[str]) -> VerifyReport:
                 used,
                 0,
                 f"candidate {cid}: θ[{diff}] recorded {rec.theta[diff]!r}, "
-                f"rebuilt {mine.theta[diff]!r}",
+                f"rebuilt {mine.theta[diff]!r} (the run config's seed, algorithm or their "
+                "options are not the recorded run's: fields seed, algorithm, "
+                "algorithm_options, initial_design)",
             )
-    duels = rebuilt.driver.session.optimizer.history.duels
+    duels = {r.duel_id: r for r in rebuilt.requests}
     for did in sorted(run.requests):
         req = run.requests[did]
-        if did >= len(duels) or (duels[did].first, duels[did].second) != (
-            req.first_id,
-            req.second_id,
-        ):
-            mine_txt = "none" if did >= len(duels) else f"{duels[did].first} vs {duels[did].second}"
+        ours = duels.get(did)
+        if ours is None or (ours.first_id, ours.second_id) != (req.first_id, req.second_id):
+            mine_txt = "none" if ours is None else f"{ours.first_id} vs {ours.second_id}"
             return VerifyReport(
                 False,
                 0,
