@@ -284,7 +284,7 @@ def test_summarize_finished_bag(tmp_path: Path) -> None:
     counts = {t.topic: t.count for t in info.topics}
     for spec in T.ALL_TOPICS:
         assert counts[spec.name] == sum(1 for topic, *_ in stream if topic == spec.name)
-    assert "complete:  yes" in info.format()
+    assert "file complete: yes (closed cleanly)" in info.format()
 
 
 def test_writer_refuses_type_mismatch_and_use_after_close(tmp_path: Path) -> None:

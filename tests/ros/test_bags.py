@@ -30,7 +30,8 @@ def test_committed_bag_is_a_complete_run() -> None:
 def test_cli_bag_info_and_verify(capsys) -> None:
     assert cli_main(["bag-info", str(BAG)]) == 0
     out = capsys.readouterr().out
-    assert "complete:  yes" in out and "/localpbo/duel_outcome" in out
+    assert "file complete: yes (closed cleanly)" in out and "/localpbo/duel_outcome" in out
+    assert "run finished: yes (40 of 40 evaluations)" in out
     assert "decision time: not recorded" in out  # recorded before requests carried it
     assert "outcomes: 39 duels, 39 decisive, 0 can't tell, 0 failed" in out
     assert cli_main(["replay", "--verify", str(BAG)]) == 0

@@ -261,18 +261,25 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``localpbo run``."""
-    from localpbo_ros.bagtools import load_run
     from localpbo_ros.driver import judged_by_person
     from localpbo_ros.params import ParameterError
+    from localpbo_ros.replay import resumable
     from localpbo_ros.suite import default_bag, run_suite
 
     if args.resume is not None:
         args.warm_start = "none"  # the recorded config rules
         try:
-            recorded = load_run(args.resume).config
+            recorded_run = resumable(args.resume)
+            recorded = recorded_run.config
         except (OSError, ValueError) as exc:
             print(f"localpbo run: --resume: {exc}", file=sys.stderr)
             return EXIT_USAGE
+        if recorded_run.ends_early:
+            print(
+                f"localpbo run: --resume: {args.resume}: {recorded_run.ends_early}; "
+                "continuing from what was read",
+                file=sys.stderr,
+            )
         if judged_by_person(recorded):
             if args.oracle == "simulated":
                 print(
@@ -372,6 +379,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
             return EXIT_USAGE
         print(report.format())
         return EXIT_OK if report.ok else EXIT_RUN_FAILED
+    from localpbo_ros.bagtools import require_bag
+
+    try:
+        require_bag(args.bag)
+    except (OSError, ValueError) as exc:
+        print(f"localpbo replay: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -397,6 +411,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         )
         print(f"published {sent} messages from {args.bag}")
         return EXIT_OK
+    except BrokenPipeError:
+        raise  # the reader of stdout went away: main ends quietly
     except (OSError, ValueError) as exc:
         print(f"localpbo replay: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -409,19 +425,32 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_bag_info(args: argparse.Namespace) -> int:
-    """``localpbo bag-info``."""
+    """``localpbo bag-info``: the file (complete: closed cleanly, or where it ends early),
+    its topics, and for a run's bag whether the run finished (n of budget evaluations)."""
     from localpbo_msgs_py.bag import summarize
-    from localpbo_ros.bagtools import duel_timings, load_run, outcome_counts
+    from localpbo_ros.bagtools import (
+        duel_timings,
+        history_problem,
+        load_run,
+        outcome_counts,
+        require_bag,
+    )
 
     try:
-        print(summarize(args.bag).format())
+        require_bag(args.bag)
+        summary = summarize(args.bag)
     except (OSError, ValueError) as exc:
         print(f"localpbo bag-info: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    print(summary.format())
     try:
         run = load_run(args.bag)
     except ValueError:  # not a run's bag (no run config): topics only
         return EXIT_OK
+    print(f"run finished: {run.finished}")
+    problem = history_problem(run)
+    if problem:
+        print(f"not one run's record: {problem}")
     print(outcome_counts(run).format())
     for timing in duel_timings(run):
         print(timing.format())
@@ -429,11 +458,14 @@ def cmd_bag_info(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m localpbo_ros.commands run|replay|bag-info ...``."""
+    """``python -m localpbo_ros.commands run|replay|bag-info ...`` (a closed stdout pipe ends
+    it quietly, :func:`localpbo_core.pipes.quiet_on_closed_pipe`)."""
+    from localpbo_core.pipes import quiet_on_closed_pipe
+
     parser = argparse.ArgumentParser(prog="localpbo")
     add_subcommands(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
-    return int(args.func(args))
+    return quiet_on_closed_pipe(lambda: int(args.func(args)))
 
 
 if __name__ == "__main__":
