@@ -130,7 +130,7 @@ PARAMS = [
     Param(
         "budget",
         0,
-        "Evaluations incl. the initial design; 0 = algorithm default.",
+        "Evaluations incl. the initial design; 0 = initial design + 10 d (paper App. D.1).",
         int_range=(0, 100_000),
     ),
     Param(
@@ -200,7 +200,8 @@ PARAMS = [
     Param(
         "min_subscribers",
         1,
-        "Start once candidate and duel_request topics have this many subscribers.",
+        "Start once candidate and duel_request topics have this many subscribers (what the "
+        "start waits for is logged every few seconds).",
         int_range=(0, 1000),
     ),
     Param(
