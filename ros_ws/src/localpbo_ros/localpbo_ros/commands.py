@@ -435,6 +435,7 @@ def cmd_bag_info(args: argparse.Namespace) -> int:
         outcome_counts,
         require_bag,
     )
+    from localpbo_ros.completeness import format_statuses, last_statuses
 
     try:
         require_bag(args.bag)
@@ -454,6 +455,8 @@ def cmd_bag_info(args: argparse.Namespace) -> int:
     print(outcome_counts(run).format())
     for timing in duel_timings(run):
         print(timing.format())
+    for line in format_statuses(last_statuses(args.bag, run.config.run_id)):
+        print(line)  # every node's state and counters (its drops among them)
     return EXIT_OK
 
 

@@ -170,8 +170,11 @@ def verify(path: str | os.PathLike[str]) -> VerifyReport:
     """
     run = load_run(path)
     report = check_run(run, path)
-    gap = missing_from_bag(path, run) if report.ok else None  # what the run sent, not here
-    return report if gap is None else replace(report, ok=False, mismatch=f"{path}: {gap}")
+    gap = missing_from_bag(path, run)  # what the run published that the bag lacks
+    if gap is None:
+        return report
+    also = "" if report.ok else f" (and: {report.mismatch})"
+    return replace(report, ok=False, mismatch=f"{path}: {gap}{also}")
 
 
 def check_run(run: RecordedRun, path: str | os.PathLike[str]) -> VerifyReport:

@@ -18,11 +18,21 @@ to a day (people take breaks; a pending duel is never failed for being slow) and
 Resume (``resume=BAG``): the old bag is copied into the new one first (original times), the
 optimizer is rebuilt by re-feeding the recorded outcomes (``driver.rebuild``), and the run
 continues with the first unanswered duel, so every duel appears exactly once.
+
+Stopping (``stop=``, set by the first SIGINT or SIGTERM in ``localpbo run``): the loop ends,
+the optimizer says ``stopped`` on the status topic, the recorder takes the last messages, a
+bridged controller gets its original parameters back, the judge's page stops and the bag is
+closed (complete, not finished: ``--resume`` continues it). The clean-up is bounded like a
+node's (``entry.STOP_GRACE_S`` plus the bridge's ``close_timeout_s``; then every thread's
+stack and exit 1). A stop before the optimizer started leaves no bag (:class:`StoppedEarly`).
 """
 
 from __future__ import annotations
 
+import faulthandler
 import os
+import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -40,6 +50,7 @@ from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
 from localpbo_ros.dds import host_scope, in_process_scope
 from localpbo_ros.driver import judged_by_person
+from localpbo_ros.entry import STOP_GRACE_S
 from localpbo_ros.judge_node import JudgeNode
 from localpbo_ros.optimizer_node import OptimizerNode, settings_from_config
 from localpbo_ros.oracle_node import OracleNode
@@ -51,6 +62,13 @@ from localpbo_ros.summary import RunSummary
 
 HUMAN_DUEL_TIMEOUT_S = 86_400.0
 """The optimizer's ``duel_timeout_s`` when a person answers (unless the settings give one)."""
+
+STOPPED = "stopped"
+"""The summary's state of a run ended by a stop request (SIGINT/SIGTERM)."""
+
+
+class StoppedEarly(Exception):
+    """A stop was requested before the optimizer started: nothing ran and no bag is left."""
 
 
 def run_suite(
@@ -66,6 +84,7 @@ def run_suite(
     controllers: Sequence[Callable[[Context], Any]] = (),
     judge: dict[str, Any] | None = None,
     on_url: Callable[[str], None] | None = None,
+    stop: threading.Event | None = None,
 ) -> RunSummary:
     """Run optimizer, simulator, oracle (and recorder) until the budget is spent.
 
@@ -85,9 +104,12 @@ def run_suite(
         judge: ``judge_node`` parameters: a person answers the duels in a browser instead of
             the simulated oracle.
         on_url: called once with the judge page's URL.
+        stop: when set (``localpbo run``: by SIGINT/SIGTERM), the run stops cleanly with
+            state ``stopped``; given, the clean-up is bounded by the stop watchdog.
 
     Raises:
         ParameterError: a refused setting (named).
+        StoppedEarly: ``stop`` was set before the optimizer started (no bag is left).
     """
     if bridge is not None and not controllers:
         host_scope()  # the controller runs in another process on this host
@@ -118,6 +140,7 @@ def run_suite(
     writer: BagWriter | None = None
     executor = SingleThreadedExecutor(context=ctx)
     refused = False
+    stopping = stop if stop is not None else threading.Event()
     try:
         if record:
             writer = BagWriter(bag)
@@ -145,10 +168,14 @@ def run_suite(
         if record:
             deadline = time.monotonic() + 10.0
             while not nodes[0].matched([EPISODE_RESULT.name, DUEL_OUTCOME.name]):
+                if stopping.is_set():
+                    raise StoppedEarly()
                 executor.spin_once(timeout_sec=0.01)
                 if time.monotonic() > deadline:
                     raise RuntimeError("recorder did not match the simulator/oracle publishers")
         settings["min_subscribers"] = 2 if record else 1
+        if stopping.is_set():
+            raise StoppedEarly()
         try:
             opt = OptimizerNode(context=ctx, overrides=settings, resume_outcomes=outcomes)
         except ParameterError:
@@ -161,6 +188,9 @@ def run_suite(
         budget = opt.driver.session.budget
         url = ""
         while not opt.finished:
+            if stopping.is_set():
+                _halt(opt, STOPPED, _stop_reason(stopping, bag))
+                break
             executor.spin_once(timeout_sec=0.05)
             if isinstance(oracle, JudgeNode) and oracle.state == "failed":
                 opt.error, opt.state = "judge_node cannot serve the run (see its log)", "failed"
@@ -173,7 +203,7 @@ def run_suite(
             if on_progress is not None:
                 on_progress(opt.driver.session.evaluations, budget)
             if timeout_s is not None and time.monotonic() - start > timeout_s:
-                opt.error, opt.state = f"no result within {timeout_s} s", "timeout"
+                _halt(opt, "timeout", f"no result within {timeout_s} s")
                 break
         # let the recorder take the last messages (final outcome, incumbent, status), and a
         # judge's page learn that the run is complete
@@ -190,7 +220,16 @@ def run_suite(
             incumbent_return=_return_of(oracle, node_summary.incumbent_id),
             first_candidate_return=oracle.episode_return(0),
         )
+    except StoppedEarly:
+        refused = True  # nothing ran: no bag
+        raise
     finally:
+        if stop is not None:  # bounded, like a node's clean-up
+            grace = STOP_GRACE_S + sum(
+                n.close_timeout_s for n in nodes if isinstance(n, ParamBridgeNode)
+            )
+            # to the process's own stderr (a test's capture has no file descriptor)
+            faulthandler.dump_traceback_later(grace, exit=True, file=sys.__stderr__)
         for node in nodes:
             if isinstance(node, ParamBridgeNode | JudgeNode):
                 node.close()  # the controller gets its original parameters back; the page stops
@@ -203,6 +242,23 @@ def run_suite(
             if refused:  # nothing ran: leave no empty bag behind
                 Path(bag).unlink(missing_ok=True)
         rclpy.shutdown(context=ctx)
+        if stop is not None:
+            faulthandler.cancel_dump_traceback_later()
+
+
+def _halt(opt: OptimizerNode, state: str, reason: str) -> None:
+    """End the optimizer's run from outside (a stop request, the command's timeout): no more
+    work is published, and its last status says why (the recorder takes it)."""
+    opt.driver.cancel_speculation()
+    opt.finished = True
+    opt.finished_at = time.monotonic()
+    opt.error, opt.state = reason, state
+    opt.publish_status(1, f"{state}: {reason}")
+
+
+def _stop_reason(stop: threading.Event, bag: str | os.PathLike[str]) -> str:
+    name = getattr(stop, "signal_name", "") or "stop requested"
+    return f"{name}; continue it with: localpbo run --resume {bag}"
 
 
 def _return_of(oracle: OracleNode | JudgeNode, candidate_id: int | None) -> float | None:
