@@ -15,16 +15,19 @@ D.2 pairwise-GP settings, D.3 algorithm configurations, D.4 GP sample paths, D.5
 functions, D.6 policy search, D.7 ablations) and E Computational Resources.
 """
 
-from localpbo_core.optimizers import (
-    Ask,
-    Candidate,
-    Duel,
-    Indifferent,
-    InvalidOutcome,
-    Outcome,
-    available_optimizers,
-    make_optimizer,
-)
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from localpbo_core.optimizers import (
+        Ask,
+        Candidate,
+        Duel,
+        Indifferent,
+        InvalidOutcome,
+        Outcome,
+        available_optimizers,
+        make_optimizer,
+    )
 
 __all__ = [
     "Ask",
@@ -36,3 +39,13 @@ __all__ = [
     "available_optimizers",
     "make_optimizer",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The optimizer API, imported on first use: importing a submodule (e.g. the stop guard
+    every executable loads first, ``localpbo_core.stopping``) loads no numpy."""
+    if name in __all__:
+        from localpbo_core import optimizers
+
+        return getattr(optimizers, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -510,11 +510,15 @@ def plot_best_seen(records: Sequence[EvaluationRecord], path: Path) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``localpbo`` console script."""
+    """The ``localpbo`` command (its console script, :mod:`localpbo_core.console`, installs the
+    stop guard first)."""
+    from localpbo_core.stopping import release_start_guard
     from localpbo_core.threads import use_fast_threads
 
     parser = _build_parser()
     args = parser.parse_args(argv)
+    if not getattr(args, "handles_signals", False):  # ``run`` stops cleanly on its own
+        release_start_guard()
     if getattr(args, "torch_threads", None) is None:
         use_fast_threads()
     if hasattr(args, "func"):  # a command contributed by the ROS package

@@ -17,9 +17,10 @@ setup(
     zip_safe=True,
     description="Worked example for localpbo: a PID controller tuned through its parameters.",
     license="MIT",
+    # the launcher of localpbo_ros's executables: the stop guard comes before the node's imports
     entry_points={
         "console_scripts": [
-            f"pid_controller_node = {PACKAGE}.pid_controller_node:main",
+            "pid_controller_node = localpbo_ros.entry:pid_controller_node",
         ],
     },
 )

@@ -18,14 +18,15 @@ setup(
     zip_safe=True,
     description="ROS 2 nodes of localpbo: optimizer, MuJoCo simulator, oracle and judge page.",
     license="MIT",
+    # each executable is a launcher in entry.py: the stop guard comes before the node's imports
     entry_points={
         "console_scripts": [
-            f"optimizer_node = {PACKAGE}.optimizer_node:main",
-            f"sim_node = {PACKAGE}.sim_node:main",
-            f"oracle_node = {PACKAGE}.oracle_node:main",
-            f"recorder_node = {PACKAGE}.recorder_node:main",
-            f"param_bridge_node = {PACKAGE}.param_bridge_node:main",
-            f"judge_node = {PACKAGE}.judge_node:main",
+            f"optimizer_node = {PACKAGE}.entry:optimizer_node",
+            f"sim_node = {PACKAGE}.entry:sim_node",
+            f"oracle_node = {PACKAGE}.entry:oracle_node",
+            f"recorder_node = {PACKAGE}.entry:recorder_node",
+            f"param_bridge_node = {PACKAGE}.entry:param_bridge_node",
+            f"judge_node = {PACKAGE}.entry:judge_node",
         ],
     },
 )

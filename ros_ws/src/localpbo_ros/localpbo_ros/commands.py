@@ -159,7 +159,7 @@ def add_subcommands(subparsers: Any) -> None:
         "holds the old history plus the rest, each duel once",
     )
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.set_defaults(func=cmd_run)
+    run.set_defaults(func=cmd_run, handles_signals=True)
 
     replay = subparsers.add_parser(
         "replay",
@@ -260,11 +260,18 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """``localpbo run``."""
+    """``localpbo run``.
+
+    SIGINT or SIGTERM stops the run cleanly (``run_suite``'s ``stop``): the summary says
+    ``stopped`` and how to continue, and the process exits with 128 + the signal (130, 143)
+    at once after it (the interpreter's finalization skipped, as the nodes do). Exit codes
+    otherwise: 0 done, 1 failed, 2 refused.
+    """
+    from localpbo_core.stopping import exit_now, shell_code, stop_requests
     from localpbo_ros.driver import judged_by_person
     from localpbo_ros.params import ParameterError
     from localpbo_ros.replay import resumable
-    from localpbo_ros.suite import default_bag, run_suite
+    from localpbo_ros.suite import StoppedEarly, default_bag, run_suite
 
     if args.resume is not None:
         args.warm_start = "none"  # the recorded config rules
@@ -330,24 +337,37 @@ def cmd_run(args: argparse.Namespace) -> int:
         else:
             print(text, flush=True)
 
-    try:
-        summary = run_suite(
-            settings,
-            bag,
-            resume=args.resume,
-            on_progress=progress,
-            bridge=bridge,
-            controllers=controllers,
-            judge=judge,
-            on_url=show_url,
-        )
-    except ParameterError as exc:
-        print(f"localpbo run: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    finally:
-        if bar is not None:
-            bar.close()
-    print(summary.format())
+    with stop_requests() as stop:
+        try:
+            summary = run_suite(
+                settings,
+                bag,
+                resume=args.resume,
+                on_progress=progress,
+                bridge=bridge,
+                controllers=controllers,
+                judge=judge,
+                on_url=show_url,
+                stop=stop,
+            )
+        except ParameterError as exc:
+            print(f"localpbo run: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        except StoppedEarly:
+            summary = None
+        finally:
+            if bar is not None:
+                bar.close()
+        if summary is None:
+            print(
+                f"localpbo run: stopped by {stop.signal_name} before the run started; "
+                "no bag written",
+                file=sys.stderr,
+            )
+            exit_now(shell_code(stop.signum))
+        print(summary.format())
+        if stop.is_set() and summary.state != "done":
+            exit_now(shell_code(stop.signum))
     return EXIT_OK if summary.state == "done" else EXIT_RUN_FAILED
 
 

@@ -1,8 +1,7 @@
 """DDS scope: this host only unless the user opts in.
 
-* In one process (``localpbo run``, tests): ``ROS_AUTOMATIC_DISCOVERY_RANGE=OFF`` — the nodes
-  share one ``Context`` and still connect; nothing leaves the process.
-* Separate processes (``ros2 run``): the executables use the Fast DDS profile
+* Separate processes (``ros2 run``, and ``localpbo run`` bridged to a controller in another
+  process): the executables use the Fast DDS profile
   ``localhost_only.xml`` shipped with this package (unless ``FASTRTPS_DEFAULT_PROFILES_FILE``
   is already set) with ``ROS_AUTOMATIC_DISCOVERY_RANGE=SYSTEM_DEFAULT``, so that the profile
   alone decides: UDPv4 restricted to 127.0.0.1 plus shared memory, built-in transports off,
@@ -12,7 +11,13 @@
   would not do: with it rmw_fastrtps adds a UDPv4 transport of its own, which binds sockets on
   0.0.0.0 and on the host's external addresses. ``OFF`` is kept when set (still loopback-only,
   but processes do not discover each other).
-* To open to a network: set ``LOCALPBO_DDS_OPEN=1`` (the executables then leave the
+* In one process (``localpbo run``, ``make demo``, ``--oracle human``): the same profile with
+  ``ROS_AUTOMATIC_DISCOVERY_RANGE=OFF`` (unless the user chose a range): the nodes share one
+  ``Context`` and still connect; no other process discovers them, and the few sockets the
+  participant opens are bound to 127.0.0.1 (``OFF`` alone would bind them on 0.0.0.0 and on
+  the host's external addresses). A user who sets another range makes the run visible to
+  processes on this host (e.g. ``ros2 topic echo``), still on loopback.
+* To open to a network: set ``LOCALPBO_DDS_OPEN=1`` (every executable then leaves the
   environment alone) and choose ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` and a
   ``ROS_DOMAIN_ID`` yourself.
 
@@ -31,8 +36,12 @@ OPEN_VARIABLE = "LOCALPBO_DDS_OPEN"
 
 
 def in_process_scope() -> None:
-    """Keep all traffic inside this process (unless the user set a range)."""
+    """Keep all traffic inside this process, on loopback sockets (unless the user set a range:
+    then this host; or ``LOCALPBO_DDS_OPEN=1``: the user's environment)."""
+    if os.environ.get(OPEN_VARIABLE) == "1":
+        return
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
+    host_scope()
 
 
 def host_scope() -> None:

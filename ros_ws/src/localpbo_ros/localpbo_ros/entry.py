@@ -1,5 +1,13 @@
 """Process entry for the executables: DDS scope, rclpy init, clear parameter errors, spin.
 
+Starting: each executable's console script (what ``ros2 run`` starts) is one of the launchers
+at the end of this module. A launcher installs the stop guard
+(:func:`localpbo_core.stopping.guard_start`) before it imports its node's module, which loads
+rclpy, numpy and torch (one to two seconds on a loaded machine): a SIGINT or SIGTERM in that
+window ends the process at once with code 0 and the line ``<executable>: stopped by SIGINT
+while starting``; nothing is held yet. ``run_node`` then replaces the guard by the handling
+below before it creates anything.
+
 Stopping: the first SIGINT or SIGTERM asks the node to stop; it leaves its spin loop, closes
 what it holds (the recorder finishes its bag) and exits 0. Further signals are ignored until
 the process has exited, so a second Ctrl-C, or ``timeout``/a process-group kill signalling
@@ -19,24 +27,22 @@ DDS library's static destructors, which are known to hang now and then at exit.
 
 from __future__ import annotations
 
-import ctypes
 import faulthandler
-import os
+import importlib
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
-from types import FrameType
 from typing import Any, NoReturn
 
+from localpbo_core.stopping import STOP_SIGNALS, exit_now, guard_start, stop_on_signals
 from localpbo_ros.dds import host_scope
-from localpbo_ros.params import ParameterError
+
+__all__ = ["STOP_SIGNALS", "exit_now", "run_node", "stop_on_signals"]
 
 LINGER_S = 1.0
 """Seconds a finished optimizer keeps spinning so the last messages reach their readers."""
-
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 STOP_GRACE_S = 20.0
 """Seconds the clean-up after the spin loop may take, beyond a node's own ``close_timeout_s``,
@@ -44,17 +50,28 @@ before the process reports where it hangs (every thread's stack on stderr) and e
 code 1."""
 
 
-def stop_on_signals() -> threading.Event:
-    """Install handlers for SIGINT/SIGTERM (for the rest of the process); the returned event
-    is set by the first signal, later ones change nothing."""
-    requested = threading.Event()
+def wants_help(argv: list[str]) -> bool:
+    """``-h`` or ``--help`` among the process arguments before ``--ros-args``."""
+    own = argv[1:]
+    if "--ros-args" in own:
+        own = own[: own.index("--ros-args")]
+    return "-h" in own or "--help" in own
 
-    def handler(signum: int, frame: FrameType | None) -> None:
-        requested.set()
 
-    for sig in STOP_SIGNALS:
-        signal.signal(sig, handler)
-    return requested
+def usage(factory: Callable[..., Any]) -> str:
+    """What ``--help`` prints for a node executable: how to pass its ROS parameters, and the
+    first paragraph of its module's docstring (else of the node class's)."""
+    main = sys.modules.get("__main__")
+    spec = getattr(main, "__spec__", None)
+    name = f"python -m {spec.name}" if spec is not None else sys.argv[0]
+    doc = (getattr(main, "__doc__", None) or factory.__doc__ or "").strip().split("\n\n")[0]
+    return (
+        f"usage: {name} [--ros-args -p NAME:=VALUE ...]\n\n"
+        f"{' '.join(doc.split())}\n\n"
+        "Its settings are ROS parameters; list them with `ros2 param list` and "
+        "`ros2 param describe` while the node runs. Exit codes: 0 after a clean stop, 1 when "
+        "the run failed, 2 when a parameter was refused."
+    )
 
 
 def run_node(
@@ -66,20 +83,15 @@ def run_node(
     Exit codes: 0 after a clean stop, 1 when the node's run failed or its clean-up hung past
     ``STOP_GRACE_S``, 2 when a parameter was refused (the message names it).
     """
+    if wants_help(sys.argv if argv is None else argv):
+        print(usage(factory))
+        exit_now(0)
+    stop = stop_on_signals()  # replaces the launcher's start guard
     host_scope()
-    code = _run(factory, argv, stop_when_finished, stop_on_signals())
+    code = _run(factory, argv, stop_when_finished, stop)
     for sig in STOP_SIGNALS:  # the process only exits from here on
         signal.signal(sig, signal.SIG_IGN)
     exit_now(code)
-
-
-def exit_now(code: int) -> NoReturn:
-    """Flush Python's and C's output buffers and end the process with ``code`` at once,
-    without the interpreter's finalization (see the module docstring)."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    ctypes.CDLL(None).fflush(None)  # rcutils may log to a buffered C stdout
-    os._exit(code)
 
 
 def _run(
@@ -91,6 +103,8 @@ def _run(
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+
+    from localpbo_ros.params import ParameterError
 
     args = sys.argv if argv is None else argv
     try:
@@ -138,3 +152,28 @@ def _run(
         if rclpy.ok():
             rclpy.shutdown()
     return code
+
+
+def launcher(module: str) -> Callable[[], NoReturn]:
+    """The console script of the executable whose ``main`` is in ``module``: the stop guard
+    first (exit code 0, as for any stop of a node), then the import of ``module`` and its
+    ``main``."""
+    name = module.rpartition(".")[2]
+
+    def start() -> NoReturn:
+        guard_start(name, lambda signum: 0)
+        main: Callable[[], NoReturn] = importlib.import_module(module).main
+        main()
+
+    start.__name__ = start.__qualname__ = name
+    start.__doc__ = f"``ros2 run`` ... ``{name}``: ``{module}.main`` behind the stop guard."
+    return start
+
+
+optimizer_node = launcher("localpbo_ros.optimizer_node")
+sim_node = launcher("localpbo_ros.sim_node")
+oracle_node = launcher("localpbo_ros.oracle_node")
+recorder_node = launcher("localpbo_ros.recorder_node")
+param_bridge_node = launcher("localpbo_ros.param_bridge_node")
+judge_node = launcher("localpbo_ros.judge_node")
+pid_controller_node = launcher("localpbo_examples.pid_controller_node")

@@ -1,0 +1,138 @@
+"""Stopping a process on SIGINT or SIGTERM: a guard while it starts, a request once it runs.
+
+Every executable (the ``localpbo`` command, each node) installs :func:`guard_start` as its
+very first step, before it imports anything heavy: numpy, torch and rclpy take one to two
+seconds to import on a loaded machine. A signal in that window ends the process at once with
+the executable's exit code and a one-line message on stderr; nothing is held yet (no bag, no
+DDS participant, no controller's parameter changed), so ending at once is a clean stop.
+
+Once the process holds something it replaces the guard by :func:`stop_on_signals`: the first
+signal sets a :class:`StopRequest` that its main loop polls; the loop ends, closes what it holds
+(bags finished, a controller's parameters restored) and the process exits. Later signals are
+ignored, so a second Ctrl-C, or ``timeout`` and a process-group kill signalling twice, cannot cut
+the clean-up short. A command that keeps Python's default behaviour (Ctrl-C raises
+``KeyboardInterrupt``) calls :func:`release_start_guard` instead.
+
+Nothing here imports more than the standard library: the module is loaded before anything else.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from types import FrameType
+from typing import Any, NoReturn
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def shell_code(signum: int) -> int:
+    """The shell's code for a process ended by signal ``signum``: 128 + signum (130 for
+    SIGINT, 143 for SIGTERM)."""
+    return 128 + signum
+
+
+class StopRequest(threading.Event):
+    """Set by the first SIGINT or SIGTERM; ``signum`` says which (0 until then)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.signum = 0
+
+    def request(self, signum: int) -> None:
+        """Record the first stop signal; later ones change nothing."""
+        if not self.is_set():
+            self.signum = signum
+            self.set()
+
+    @property
+    def signal_name(self) -> str:
+        """``SIGINT``, ``SIGTERM`` or empty when no stop was requested."""
+        return signal.Signals(self.signum).name if self.signum else ""
+
+
+def stop_on_signals() -> StopRequest:
+    """Install handlers for SIGINT and SIGTERM (for the rest of the process, replacing the start
+    guard); the returned request is set by the first signal, later ones are ignored."""
+    global _previous
+    requested = StopRequest()
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        requested.request(signum)
+
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, handler)
+    _previous = None  # the guard is gone
+    return requested
+
+
+@contextmanager
+def stop_requests() -> Iterator[StopRequest]:
+    """:func:`stop_on_signals` for a block: the handlers from before come back when the block
+    ends without a stop request; after one they stay (later signals ignored) while the caller
+    finishes and exits."""
+    previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+    request = stop_on_signals()
+    try:
+        yield request
+    finally:
+        if not request.is_set():
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+
+_previous: dict[signal.Signals, Any] | None = None
+"""The handlers the start guard replaced (None: no guard installed)."""
+
+
+def guard_start(program: str, code_of: Callable[[int], int]) -> None:
+    """End the process at once on SIGINT or SIGTERM until it installs its own handling.
+
+    ``program`` names the executable in the message (``<program>: stopped by SIGINT while
+    starting``); ``code_of(signum)`` is its exit code (the nodes: 0; ``localpbo``:
+    :func:`shell_code`). The message is written with ``os.write``: a signal handler must not
+    use a Python stream the interrupted code may be writing to.
+    """
+    global _previous
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        name = signal.Signals(signum).name
+        os.write(2, f"{program}: stopped by {name} while starting\n".encode())
+        exit_now(code_of(signum))
+
+    previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, handler)
+    _previous = previous
+
+
+def release_start_guard() -> None:
+    """Give SIGINT and SIGTERM back the handlers they had before :func:`guard_start` (Python's
+    defaults, or ``SIG_IGN`` when the process was started with them ignored); no-op without a
+    guard."""
+    global _previous
+    if _previous is None:
+        return
+    for sig, handler in _previous.items():
+        signal.signal(sig, handler)
+    _previous = None
+
+
+def exit_now(code: int) -> NoReturn:
+    """Flush Python's and C's output buffers and end the process with ``code`` at once, without
+    the interpreter's finalization: whatever the process held is closed by then, and skipping
+    finalization skips the DDS library's static destructors, which are known to hang now and
+    then at exit."""
+    import ctypes
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, RuntimeError):  # closed, or being written when signalled
+            pass
+    ctypes.CDLL(None).fflush(None)  # rcutils may log to a buffered C stdout
+    os._exit(code)
