@@ -131,24 +131,17 @@ def test_from_native_refuses_values_outside_the_box() -> None:
 
 # ----------------------------------------------------------------- hostile files
 
-BOMB_LEVELS = 9  # 9 levels of 9 aliases: 9**9 ≈ 3.9e8 leaves once expanded
 
-
-def alias_bomb(field: str) -> str:
-    """A billion-laughs space file whose ``field`` holds the expansion."""
-    lines = ['a0: &a0 "lol"']
-    for level in range(1, BOMB_LEVELS + 1):
-        refs = ", ".join(f"*a{level - 1}" for _ in range(9))
-        lines.append(f"a{level}: &a{level} [{refs}]")
-    top = f"*a{BOMB_LEVELS}"
-    if field == "name":
-        body = f"name: {top}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
-    elif field == "value_range":
-        body = f"value_range: {top}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
-    else:
-        body = f"parameters:\n  - {{name: kd, lower: 0, upper: 1, description: {top}}}\n"
-    # the anchors live in an unknown key placed last, as the file's author would hide them
-    return body + "bomb:\n" + "\n".join("  " + line for line in lines) + "\n"
+def alias_bomb(field: str, levels: int = 9) -> str:
+    """A billion-laughs space file: ``field`` holds a list whose items define the anchors,
+    level k being 9 aliases of level k - 1 (9**9 ≈ 3.9e8 leaves once expanded)."""
+    items = ['&a0 "lol"'] + [
+        f"&a{k} [" + ", ".join([f"*a{k - 1}"] * 9) + "]" for k in range(1, levels + 1)
+    ]
+    bomb = "[" + ", ".join(items) + "]"
+    if field == "description":
+        return f"parameters:\n  - {{name: kd, lower: 0, upper: 1, description: {bomb}}}\n"
+    return f"{field}: {bomb}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
 
 
 @pytest.mark.timeout(60)
