@@ -62,3 +62,29 @@ def test_a_person_judging_gets_speculation_unless_told_otherwise() -> None:
     assert run_settings(parse(["run", "--oracle", "human"]))["speculate"] is True
     no = parse(["run", "--oracle", "human", "--no-speculate"])
     assert run_settings(no)["speculate"] is False
+
+
+def test_a_refused_space_file_exits_2_naming_file_and_field(tmp_path, capsys) -> None:
+    """Before anything starts: no node, no bag; the message names the file and the field."""
+    bomb = tmp_path / "bomb.yaml"
+    levels = ['&a0 "lol"'] + [f"&a{k} [{', '.join([f'*a{k - 1}'] * 9)}]" for k in range(1, 10)]
+    bomb.write_text(
+        f"name: [{', '.join(levels)}]\nparameters: [{{name: kd, lower: 0, upper: 1}}]\n"
+    )
+    binary = tmp_path / "gains.bin"
+    binary.write_bytes(bytes(range(256)))
+    low = tmp_path / "low.yaml"
+    low.write_text("parameters:\n  - {name: kd, lower: 2, upper: 1}\n")
+    out = tmp_path / "out"
+    cases = {
+        bomb: "space: file {}: uses a YAML anchor or alias",
+        binary: "space: file {}: is not a YAML mapping (not UTF-8 text",
+        low: "space.kd.lower: file {}: must be below upper",
+    }
+    for path, says in cases.items():
+        argv = ["run", "--space", str(path), "--example-controller", "--out", str(out)]
+        assert main([*argv, "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("localpbo run: --space: " + says.format(path)), err
+        assert len(err) < 400
+    assert not out.exists()

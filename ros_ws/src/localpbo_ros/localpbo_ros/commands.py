@@ -303,6 +303,15 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     if args.resume is not None:
         settings["run_id"] = recorded.run_id
+    elif args.space:  # a refused space file is named before anything starts
+        from localpbo_core.space import load_space
+        from localpbo_core.validation import SettingError
+
+        try:
+            load_space(args.space)
+        except SettingError as exc:
+            print(f"localpbo run: --space: {exc.field}: {exc.reason}", file=sys.stderr)
+            return EXIT_USAGE
     bag = Path(args.bag) if args.bag else default_bag(args.out, settings["run_id"])
     if args.resume is not None and bag.resolve() == Path(args.resume).resolve():
         bag = bag.with_name(bag.stem + "-resumed.mcap")
