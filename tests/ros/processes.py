@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
+
+HEAVY = ("numpy", "torch", "rclpy", "mujoco")
+"""Shared objects of the heavy imports (their paths contain these names)."""
 
 
 def wait_ready(proc: subprocess.Popen[str]) -> list[str]:
@@ -87,3 +92,35 @@ def stop_nodes(procs: Sequence[subprocess.Popen[str]], timeout_s: float = 30.0) 
             raise AssertionError(f"{proc.args} exited with {proc.returncode}; stderr:\n{err}")
         codes.append(proc.returncode)
     return codes
+
+
+def wait_for_guard(pid: int, timeout: float = 60.0) -> None:
+    """Wait until process ``pid`` catches SIGTERM: its start guard is in place (Python itself
+    catches only SIGINT)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            status = Path(f"/proc/{pid}/status").read_text()
+        except (FileNotFoundError, ProcessLookupError):
+            raise AssertionError(f"process {pid} ended before its guard was seen") from None
+        caught = re.search(r"SigCgt:\s*([0-9a-f]+)", status)
+        if caught and int(caught.group(1), 16) & (1 << (signal.SIGTERM - 1)):
+            return
+        time.sleep(0.001)
+    raise AssertionError(f"process {pid} never caught SIGTERM")
+
+
+IMPORT_LINE = re.compile(r"^import time:\s*\d+ \|\s*\d+ \|(\s*)(\S+)", re.MULTILINE)
+
+
+def imported_before_guard(stderr: str) -> list[str]:
+    """The heavy modules a process imported before the stop guard's module
+    (``localpbo_core.stopping``), from its ``PYTHONPROFILEIMPORTTIME=1`` report on stderr.
+
+    The report lists a module when its import completes, nested imports first, so a heavy
+    module imported by the guard's own import chain would be listed before it.
+    """
+    names = [m.group(2) for m in IMPORT_LINE.finditer(stderr)]
+    assert "localpbo_core.stopping" in names, stderr[-3000:]
+    before = names[: names.index("localpbo_core.stopping")]
+    return sorted({n for n in before if n.split(".")[0] in HEAVY})

@@ -1,8 +1,12 @@
-"""DDS scope of the executables: by default a node process listens on loopback only."""
+"""DDS scope of the executables: by default a node process and a one-process ``localpbo run``
+(plain, with the judge's page, with the example controller in the process or bridged to one in
+another process) bind every socket on loopback; ``LOCALPBO_DDS_OPEN=1`` leaves DDS to the
+user."""
 
 from __future__ import annotations
 
 import ipaddress
+import json
 import os
 import signal
 import subprocess
@@ -10,12 +14,18 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import psutil
 import pytest
+from localpbo_examples.pid_controller_node import BRIDGE_SETTINGS
 from localpbo_ros import dds
 
 from .processes import wait_ready
+
+PID_SPACE = (
+    Path(__file__).resolve().parents[2] / "ros_ws/src/localpbo_examples/config/pid_space.yaml"
+)
 
 DDS_VARIABLES = (
     "ROS_AUTOMATIC_DISCOVERY_RANGE",
@@ -109,3 +119,73 @@ def test_host_scope_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     dds.host_scope()
     assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+
+
+LOCALPBO = str(Path(sys.executable).with_name("localpbo"))
+SMALL = ["--algorithm", "sobol", "--task-options", '{"episode_steps": 50, "value_range": 50}']
+
+
+@contextmanager
+def process(cmd: list[str], extra_env: dict[str, str], domain: int) -> Iterator[psutil.Process]:
+    """``cmd`` on ``domain``, yielded once DDS has been up for 2 s (discovery announced,
+    every socket it will open opened); stopped with SIGINT afterwards."""
+    env = {k: v for k, v in os.environ.items() if k not in DDS_VARIABLES}
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env.update(extra_env)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        handle = psutil.Process(proc.pid)
+        deadline = time.monotonic() + 120
+        while not any(c.type.name == "SOCK_DGRAM" for c in handle.net_connections("inet")):
+            assert proc.poll() is None, f"{cmd} ended with {proc.returncode}"
+            assert time.monotonic() < deadline, f"{cmd}: no DDS socket within 120 s"
+            time.sleep(0.1)
+        time.sleep(2.0)
+        assert proc.poll() is None, f"{cmd} ended with {proc.returncode}"
+        yield handle
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def run_cmd(tmp_path: Path, *args: str) -> list[str]:
+    bag = str(tmp_path / "scope.mcap")
+    return [LOCALPBO, "run", *args, "--budget", "400", "--bag", bag, "--no-progress"]
+
+
+RUNS = {
+    "plain": [*SMALL],
+    "human": ["--oracle", "human", "--algorithm", "sobol"],
+    "example-controller": ["--space", str(PID_SPACE), "--example-controller", *SMALL[:2]],
+}
+
+
+@pytest.mark.parametrize("kind", list(RUNS))
+def test_one_process_run_binds_loopback_only(kind: str, tmp_path: Path) -> None:
+    args = RUNS[kind]
+    if kind == "human":
+        args = [*args, "--judge", json.dumps({"state_dir": str(tmp_path / "judge")})]
+    with process(run_cmd(tmp_path, *args), {}, 55) as handle:
+        sockets = handle.net_connections(kind="inet")
+        assert any(c.laddr.ip == "127.0.0.1" for c in sockets), sockets
+        assert non_loopback_sockets(handle) == []
+
+
+def test_bridged_run_and_its_controller_bind_loopback_only(tmp_path: Path) -> None:
+    controller = [sys.executable, "-m", "localpbo_examples.pid_controller_node"]
+    with process(controller, {}, 56) as target:
+        cmd = run_cmd(tmp_path, "--space", str(PID_SPACE), "--bridge", json.dumps(BRIDGE_SETTINGS))
+        with process([*cmd, *SMALL[:2]], {}, 56) as run:
+            assert non_loopback_sockets(run) == []
+            assert non_loopback_sockets(target) == []
+
+
+def test_one_process_run_opt_in_leaves_dds_to_the_user(tmp_path: Path) -> None:
+    # the control case: with the opt-in and no range, DDS binds on every interface
+    with process(run_cmd(tmp_path, *SMALL), {"LOCALPBO_DDS_OPEN": "1"}, 57) as handle:
+        assert non_loopback_sockets(handle) != []

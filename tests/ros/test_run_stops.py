@@ -24,7 +24,7 @@ from localpbo_ros.replay import verify
 
 from localpbo_msgs_py.bag import summarize
 
-from .processes import host_env
+from .processes import host_env, imported_before_guard, wait_for_guard
 
 LOCALPBO = str(Path(sys.executable).with_name("localpbo"))
 REPO = Path(__file__).resolve().parents[2]
@@ -32,8 +32,6 @@ PID_SPACE = REPO / "ros_ws/src/localpbo_examples/config/pid_space.yaml"
 TASK = ["--algorithm", "sobol", "--task-options", '{"episode_steps": 50, "value_range": 50}']
 BUDGET = 60
 PROGRESS = re.compile(r"(\d+)/(\d+)")
-HEAVY = ("numpy", "torch", "rclpy", "mujoco")
-"""Shared objects of the heavy imports (their paths contain these names)."""
 
 
 class Run:
@@ -95,24 +93,6 @@ class Run:
         if self.popen.poll() is None:
             self.popen.kill()
             self.popen.wait()
-
-
-def guard_installed(pid: int, timeout: float = 60.0) -> list[str]:
-    """Wait until process ``pid`` catches SIGTERM (the start guard is in place; Python itself
-    catches only SIGINT); return the heavy shared objects it had mapped by then."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        try:
-            status = Path(f"/proc/{pid}/status").read_text()
-            maps = Path(f"/proc/{pid}/maps").read_text()
-        except (FileNotFoundError, ProcessLookupError):
-            raise AssertionError("the process ended before its guard was seen") from None
-        caught = int(re.search(r"SigCgt:\s*([0-9a-f]+)", status).group(1), 16)  # type: ignore[union-attr]
-        if caught & (1 << (signal.SIGTERM - 1)):
-            paths = {line.split()[-1] for line in maps.splitlines() if "/" in line}
-            return sorted(p for p in paths if any(h in p for h in HEAVY))
-        time.sleep(0.001)
-    raise AssertionError(f"process {pid} never caught SIGTERM")
 
 
 def assert_stopped(run: Run, code: int, sig: signal.Signals) -> None:
@@ -185,15 +165,17 @@ def test_stop_while_starting(seed: int, after_s: float, tmp_path: Path) -> None:
     rng = random.Random(100 + seed)
     sig = (signal.SIGINT, signal.SIGTERM)[seed % 2]
     bag = tmp_path / "early.mcap"
-    run = Run([*TASK, "--budget", "40", "--run-id", "early", "--bag", str(bag)], host_env(69))
+    env = {**host_env(69), "PYTHONPROFILEIMPORTTIME": "1"}
+    run = Run([*TASK, "--budget", "40", "--run-id", "early", "--bag", str(bag)], env)
     try:
-        heavy = guard_installed(run.popen.pid)
+        wait_for_guard(run.popen.pid)
         time.sleep(after_s + rng.uniform(0.0, 0.3))
         run.popen.send_signal(sig)
         code = run.finish()
     finally:
         run.kill()
-    assert heavy == [], heavy  # the guard came before numpy, torch, rclpy, MuJoCo
+    # the guard came before numpy, torch, rclpy and MuJoCo were imported
+    assert imported_before_guard("".join(run.err)) == []
     assert_stopped(run, code, sig)
     if bag.exists():  # the run had started: complete and resumable
         assert summarize(bag).complete

@@ -1,9 +1,11 @@
 """Stopping an executable with two signals (a second Ctrl-C, ``timeout``, a process-group kill):
-no traceback, exit 0, and the recorder's bag closed as complete."""
+no traceback, exit 0, and the recorder's bag closed as complete. Signalled while it is still
+importing (its console script, as ``ros2 run`` starts it): the same."""
 
 from __future__ import annotations
 
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -14,7 +16,7 @@ import pytest
 
 from localpbo_msgs_py.bag import summarize
 
-from .processes import wait_ready
+from .processes import imported_before_guard, wait_for_guard, wait_ready
 
 
 def _start(cmd: list[str], bag: Path | None, **extra_env: str) -> subprocess.Popen[str]:
@@ -115,3 +117,43 @@ def test_a_node_may_take_its_declared_close_timeout(tmp_path: Path) -> None:
     assert proc.returncode == 0, out
     assert "Traceback" not in out and "Timeout" not in out, out
     assert summarize(tmp_path / "stop.mcap").complete
+
+
+@pytest.mark.parametrize(
+    ("exe", "sig", "seed"),
+    [
+        ("sim_node", signal.SIGINT, 0),
+        ("sim_node", signal.SIGTERM, 1),
+        ("optimizer_node", signal.SIGTERM, 2),
+        ("recorder_node", signal.SIGINT, 3),
+        ("param_bridge_node", signal.SIGTERM, 4),
+        ("pid_controller_node", signal.SIGINT, 5),
+    ],
+)
+def test_signal_while_importing_stops_cleanly(
+    exe: str, sig: signal.Signals, seed: int, tmp_path: Path
+) -> None:
+    """The executable's console script (``localpbo_ros.entry.<exe>``) signalled at a random
+    point of its first second (its imports of rclpy, numpy, torch): exit 0, no traceback."""
+    rng = random.Random(seed)
+    bag = tmp_path / "early.mcap"
+    proc = _start(
+        [sys.executable, "-c", f"from localpbo_ros.entry import {exe}; {exe}()"],
+        bag if exe == "recorder_node" else None,
+        PYTHONPROFILEIMPORTTIME="1",
+    )
+    try:
+        wait_for_guard(proc.pid)
+        time.sleep(rng.uniform(0.0, 0.8))
+        proc.send_signal(sig)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out, out
+    assert imported_before_guard(out) == []  # the guard came before the heavy imports
+    assert f"{exe}: stopped by {sig.name} while starting" in out or "stopping on signal" in out
+    if exe == "recorder_node" and bag.exists():
+        assert summarize(bag).complete
