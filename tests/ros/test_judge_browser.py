@@ -5,6 +5,7 @@ verifies."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import threading
@@ -118,6 +119,11 @@ def reply_text(driver: Any, *needles: str) -> str:
         ),
         10,
     )
+
+
+def refused_text(driver: Any) -> str:
+    """The page's line for keys and clicks it did not take."""
+    return until(lambda: driver.find_element("id", "refused").text, 10)
 
 
 def press(driver: Any, key: str) -> None:
@@ -294,3 +300,206 @@ def test_cant_tell_in_the_browser(browser: Any, tmp_path: Path) -> None:
     assert len(ids) == len(set(ids))
     assert [o.duel_id for o in outcomes if o.kind is OutcomeKind.INDIFFERENT] == [tied]
     assert verify(run.bag).ok
+
+
+def test_first_hopper_duel_is_watchable_at_a_chosen_speed(browser: Any, tmp_path: Path) -> None:
+    """README's command for a person on Hopper: the first duel's two episodes last >= 1 s on
+    screen and move; the speed control (0.25x-4x) is remembered, A and B share one clock, and
+    the replay loops."""
+    import argparse
+
+    from localpbo_ros.commands import add_subcommands, run_settings
+
+    parser = argparse.ArgumentParser()
+    add_subcommands(parser.add_subparsers())
+    args = parser.parse_args(["run", "--task", "hopper", "--oracle", "human", "--budget", "3"])
+    settings = run_settings(args)
+    assert json.loads(settings["task_options"])["around_ars"] > 0  # a person starts at ARS
+    settings = {**settings, "run_id": "hop-watch", "algorithm": "sobol", "speculate": False}
+    run = Run(tmp_path, "hop-watch", **{k: v for k, v in settings.items() if k != "run_id"})
+    browser.get(run.url)
+    duel_shown(browser)
+    until(lambda: browser.execute_script("return !!(replay.a && replay.b)"), 30)
+    goal = browser.find_element("id", "goal").text
+    assert goal.startswith("Better = hops farther forward")
+    for side in ("a", "b"):
+        seconds, screen, moved = browser.execute_script(
+            f"const r = replay.{side};"
+            "const f0 = JSON.stringify(r.frames[0]);"
+            "const f1 = JSON.stringify(r.frames[r.frames.length - 1]);"
+            "return [episodeSeconds(r), duration() / effectiveRate(), f0 !== f1];"
+        )
+        assert (seconds >= 1.0 or screen >= 1.0) and moved, (side, seconds, screen)
+    # the speed: 4x, remembered across a reload; 0.25x slows the clock
+    from selenium.webdriver.support.ui import Select
+
+    Select(browser.find_element("id", "speed")).select_by_value("4")
+    assert browser.execute_script("return speed") == 4
+    browser.refresh()
+    until(lambda: browser.execute_script("return !!(replay && replay.a && replay.b)"), 30)
+    assert browser.execute_script("return speed") == 4
+    assert browser.find_element("id", "speed").get_attribute("value") == "4"
+    Select(browser.find_element("id", "speed")).select_by_value("0.25")
+    browser.execute_script("restart()")
+    t0 = browser.execute_script("return now()")
+    time.sleep(1.0)
+    t1 = browser.execute_script("return now()")
+    assert 0.15 <= t1 - t0 <= 0.5  # a quarter of the screen time
+    # both canvases are drawn from one clock: both show the same t
+    labels = browser.execute_script("return [replay.a.dt, replay.b.dt]")
+    assert labels[0] == labels[1]
+    # loop: at the end the replay starts again by itself
+    Select(browser.find_element("id", "speed")).select_by_value("4")
+    browser.execute_script("replay.offset = duration() - 0.01; replay.start = performance.now();")
+    until(lambda: browser.execute_script("return now() < duration() / 2"), 5)
+    for _ in range(2):
+        duel = duel_shown(browser)
+        browser.find_element("id", "answer-a").click()
+        reply_text(browser, f"Recorded: duel {duel}")
+    assert run.finish().state == "done"
+
+
+def test_keys_never_lost_and_layout_kept(browser: Any, tmp_path: Path) -> None:
+    """Arrow keys answer even when the time slider has the focus; a double press and a key
+    while no duel is ready are refused with a message; the duel section never hides between
+    duels (the old one dims with 'preparing')."""
+    from selenium.webdriver.common.keys import Keys
+
+    run = Run(tmp_path, "keys", tie_threshold=0.0)
+    browser.get(run.url)
+    duel = duel_shown(browser)
+    until(lambda: browser.find_element("id", "player").is_displayed(), 10)
+    # watch the duel section across the answer: it never hides
+    browser.execute_script(
+        "window.hid = 0; new MutationObserver(() => { if ($('duel').hidden) hid += 1; })"
+        ".observe($('duel'), {attributes: true});"
+    )
+    browser.find_element("id", "scrub").click()  # the slider takes the focus
+    # a double press: the second is refused where the person looks, never silently dropped
+    press(browser, Keys.ARROW_LEFT + Keys.ARROW_LEFT)
+    reply_text(browser, f"Recorded: duel {duel}", "A better")
+    told = refused_text(browser)
+    assert "not taken" in told and ("previous answer" in told or "still being sent" in told)
+    next_duel = duel_shown(browser)
+    assert next_duel != duel
+    for _ in range(4):  # the rest of the run, by keys
+        duel = duel_shown(browser)
+        press(browser, "a")
+        reply_text(browser, f"Recorded: duel {duel}")
+    until(lambda: "thank you" in browser.find_element("id", "phase").text.lower(), 20)
+    assert browser.execute_script("return hid") == 0
+    assert run.finish().state == "done"
+
+
+def test_key_while_no_duel_is_ready_is_refused_visibly(browser: Any, tmp_path: Path) -> None:
+    """A slow evaluator: keys pressed while the results are missing say why they were not
+    taken."""
+
+    def slow(config: Any, candidate_id: int, theta: Any) -> float:
+        time.sleep(1.0)
+        return float(sum(theta))
+
+    run = Run(tmp_path, "slowkeys", evaluator=slow, budget=3, task="hartmann6", task_options="{}")
+    browser.get(run.url)
+    until(lambda: browser.execute_script("return !!(state && state.duel)"), 20)
+    if not browser.execute_script("return state.duel.ready"):
+        press(browser, "a")
+        told = refused_text(browser)
+        assert "waiting for its episode results" in told or "no duel is ready" in told
+    for _ in range(2):
+        duel = duel_shown(browser)
+        press(browser, "b")
+        reply_text(browser, f"Recorded: duel {duel}")
+    assert run.finish().state == "done"
+
+
+def test_note_name_history_replay_and_visible_time(browser: Any, tmp_path: Path) -> None:
+    """A note and the judge's name go with the answer into the journal; the history lists
+    them and replays a past duel; time while the page is hidden does not count."""
+    run = Run(tmp_path, "notes", tie_threshold=0.0)
+    browser.get(run.url)
+    duel = duel_shown(browser)
+    name = browser.find_element("id", "judge-name")
+    name.clear()
+    name.send_keys("Ada")
+    note = browser.find_element("id", "answer-note")
+    note.send_keys("A swims straighter; b")  # typing "b" in the note answers nothing
+    assert not browser.find_element("id", "reply").text.startswith("Recorded")
+    from selenium.webdriver.common.keys import Keys
+
+    note.send_keys(Keys.ESCAPE)
+    # hide the page for 1.5 s (the Page Visibility API as the browser reports it)
+    browser.execute_script(
+        "Object.defineProperty(document, 'visibilityState',"
+        " {configurable: true, get: () => 'hidden'});"
+        "document.dispatchEvent(new Event('visibilitychange'));"
+    )
+    time.sleep(1.5)
+    browser.execute_script(
+        "Object.defineProperty(document, 'visibilityState',"
+        " {configurable: true, get: () => 'visible'});"
+        "document.dispatchEvent(new Event('visibilitychange'));"
+    )
+    press(browser, "a")
+    reply_text(browser, f"Recorded: duel {duel}", "A better")
+    journal = tmp_path / "judge" / "notes" / "answers.jsonl"
+    line = json.loads(journal.read_text().splitlines()[0])
+    assert line["note"] == "A swims straighter; b" and line["judge"] == "Ada"
+    assert line["hidden"] is True
+    assert line["answer_seconds"] <= line["server_seconds"] - 1.4
+    row = until(lambda: browser.find_elements("css selector", "#history tbody tr"), 10)[0]
+    assert "A swims straighter" in row.text and "Ada" in row.text
+    # replay the past duel; answers are off meanwhile; Esc goes back
+    row.find_element("css selector", "button.history-replay").click()
+    assert f"Reviewing duel {duel}" in browser.find_element("id", "review-text").text
+    until(lambda: browser.execute_script("return !!(replay.a && replay.b)"), 10)
+    assert not browser.find_element("id", "answer-a").is_enabled()
+    press(browser, Keys.ESCAPE)
+    until(lambda: not browser.find_element("id", "review").is_displayed(), 5)
+    for _ in range(4):
+        duel = duel_shown(browser)
+        press(browser, "b")
+        reply_text(browser, f"Recorded: duel {duel}")
+    assert run.finish().state == "done"
+    names = {json.loads(x)["judge"] for x in journal.read_text().splitlines()}
+    assert names == {"Ada"}  # remembered on the page for every answer
+
+
+def test_undo_in_the_browser_rebuilt_by_verify(browser: Any, tmp_path: Path) -> None:
+    """'u' takes back the last answer: journaled, a retracted outcome in the bag, the duel
+    asked again and answered anew; --verify rebuilds the run."""
+    run = Run(tmp_path, "undo", tie_threshold=0.0)
+    browser.get(run.url)
+    first = duel_shown(browser)
+    press(browser, "a")
+    reply_text(browser, f"Recorded: duel {first}", "A better")
+    second = duel_shown(browser)
+    press(browser, "a")
+    reply_text(browser, f"Recorded: duel {second}", "A better")
+    until(lambda: browser.find_element("id", "undo").is_enabled(), 10)
+    browser.execute_script("lastAnswerAt = -1e9;")
+    press(browser, "u")
+    reply_text(browser, f"Undone: duel {second}")
+    again = duel_shown(browser)
+    assert again == second
+    assert "undone" in browser.find_element("css selector", "#history tbody tr").text
+    press(browser, "b")
+    reply_text(browser, f"Recorded: duel {second}", "B better")
+    while "thank you" not in browser.find_element("id", "phase").text.lower():
+        try:
+            duel = duel_shown(browser)
+        except AssertionError:
+            break
+        press(browser, "a")
+        reply_text(browser, f"Recorded: duel {duel}")
+    summary = run.finish()
+    assert summary.state == "done"
+    journal = (tmp_path / "judge" / "undo" / "answers.jsonl").read_text().splitlines()
+    assert {"undo": second} == {k: v for k, v in json.loads(journal[2]).items() if k == "undo"}
+    recorded = load_run(run.bag)
+    kinds = [(o.duel_id, o.kind) for o in recorded.outcomes]
+    assert (second, OutcomeKind.RETRACTED) in kinds
+    final = {o.duel_id: o for o in recorded.outcomes if o.kind is OutcomeKind.DECISIVE}
+    assert final[second].winner_id == final[second].second_id  # the answer given after undo
+    report = verify(run.bag)
+    assert report.ok, report.format()

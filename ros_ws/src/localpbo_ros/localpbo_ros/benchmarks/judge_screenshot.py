@@ -1,26 +1,28 @@
 """Screenshot of the judge's page during a Hopper duel (README's ``docs/judge.png``).
 
-``python -m localpbo_ros.benchmarks.judge_screenshot [--out docs/judge.png]`` runs
-``localpbo run --task hopper --oracle human`` in this process (Sobol, budget 3, seed 1; the
-published ARS policy, clipped into the task's box, as the warm start, so one of the first two
-candidates hops; answers journaled in a temporary folder), opens the page in headless
-chromium (Debian's ``chromium`` and ``chromium-driver``), lets the two episodes play for
-``--at`` seconds, pauses them, saves the screenshot and answers the remaining duels so the run ends.
+``python -m localpbo_ros.benchmarks.judge_screenshot [--out docs/judge.png]`` runs README's
+command for a person, ``localpbo run --task hopper --oracle human --budget 16`` (plus
+``--out`` a temporary folder and ``--no-progress``), as a separate process, exactly as a user
+would; opens the printed URL in headless chromium (Debian's ``chromium`` and
+``chromium-driver``); lets the first duel's two episodes play for ``--at`` seconds of screen
+time, pauses them, saves the screenshot, and answers the remaining duels ("A better") so the
+run ends. Prints what the first duel showed (episode lengths, playback rate).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import os
+import subprocess
+import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 from typing import Any
 
-from localpbo_sims import load_ars_policy, make_task
-
-from localpbo_ros.suite import run_suite
+README_COMMAND = ["run", "--task", "hopper", "--oracle", "human", "--budget", "16"]
+"""README's command for a person judging (after ``localpbo``)."""
 
 
 def _wait(pred: Any, timeout: float) -> Any:
@@ -37,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     """Take the screenshot; returns the exit code."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="docs/judge.png")
-    parser.add_argument("--at", type=float, default=1.2, help="seconds of replay shown")
+    parser.add_argument("--at", type=float, default=1.6, help="seconds of replay shown")
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     parser.add_argument("--chromedriver", default="/usr/bin/chromedriver")
     args = parser.parse_args(argv)
@@ -46,20 +48,24 @@ def main(argv: list[str] | None = None) -> int:
     from selenium.webdriver.chrome.service import Service
 
     with tempfile.TemporaryDirectory() as tmp:
-        urls: list[str] = []
-        task = make_task("hopper")
-        warm = task.theta_from_weights(load_ars_policy("hopper").weights).theta
-        settings = {"run_id": "hopper-demo", "algorithm": "sobol", "task": "hopper"}
-        settings.update({"budget": 3, "seed": 1})
-        settings["algorithm_options"] = json.dumps({"warm_start": [float(v) for v in warm]})
-        thread = threading.Thread(
-            target=run_suite,
-            args=(settings, Path(tmp) / "hopper-demo.mcap"),
-            kwargs={"judge": {"state_dir": tmp}, "on_url": urls.append, "timeout_s": 120},
-            daemon=True,
+        command = [sys.executable, "-m", "localpbo_ros.commands", *README_COMMAND]
+        command += ["--out", tmp, "--no-progress"]
+        print("running: localpbo " + " ".join(README_COMMAND), flush=True)
+        proc = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=os.environ
         )
-        thread.start()
-        _wait(lambda: urls, 60)
+        assert proc.stdout is not None
+        lines: list[str] = []
+
+        def read() -> None:
+            assert proc.stdout is not None
+            for line in proc.stdout:
+                lines.append(line)
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
+        printed = _wait(lambda: next((ln for ln in lines if "judge the duels at " in ln), ""), 120)
+        url = printed.split("judge the duels at ", 1)[1].split()[0]
         options = webdriver.ChromeOptions()
         options.binary_location = args.chromium
         for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--hide-scrollbars"):
@@ -67,23 +73,38 @@ def main(argv: list[str] | None = None) -> int:
         options.add_argument("--window-size=1180,1240")
         driver = webdriver.Chrome(service=Service(args.chromedriver), options=options)
         try:
-            driver.get(urls[0])
-            _wait(lambda: driver.find_element("id", "answer-a").is_enabled(), 60)
-            _wait(lambda: driver.find_element("id", "canvas-b").is_displayed(), 30)
+            driver.get(url)
+            _wait(lambda: driver.find_element("id", "answer-a").is_enabled(), 120)
+            _wait(lambda: driver.execute_script("return !!(replay.a && replay.b)"), 60)
             driver.find_element("id", "replay").click()
             time.sleep(args.at)
             driver.find_element("id", "play").click()  # pause on this frame
             time.sleep(0.3)
+            shown = driver.execute_script(
+                "return [episodeSeconds(replay.a), episodeSeconds(replay.b), effectiveRate(),"
+                " state.duel.duel_id]"
+            )
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
             driver.save_screenshot(args.out)
-            print(f"wrote {args.out}")
-            while thread.is_alive():
-                if driver.find_element("id", "answer-a").is_enabled():
+            print(
+                f"wrote {args.out}: duel {shown[3]}, episodes {shown[0]:.2f} s and "
+                f"{shown[1]:.2f} s, playing at {shown[2]:.2f}x"
+            )
+            while proc.poll() is None:
+                ready = driver.execute_script(
+                    "return !$('answer-a').disabled && settled() && !inFlight"
+                )
+                if ready:
                     driver.find_element("id", "answer-a").click()
-                time.sleep(0.5)
+                time.sleep(0.3)
         finally:
             driver.quit()
-        thread.join(30)
-    return 0
+            if proc.poll() is None:
+                proc.terminate()
+            proc.wait(60)
+        reader.join(5)
+        print("".join(lines[-8:]), end="")
+    return 0 if proc.returncode == 0 else 1
 
 
 if __name__ == "__main__":

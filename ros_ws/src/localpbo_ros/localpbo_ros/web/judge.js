@@ -39,6 +39,15 @@ function fmt(v) {
 
 function text(el, value) { if (el.textContent !== value) el.textContent = value; }
 
+let refusedTimer = null;
+// A key or click that was not taken: said in its own line (kept 5 s), so the reply to the
+// answer that was taken does not cover it.
+function refuse(message) {
+  text($("refused"), message);
+  clearTimeout(refusedTimer);
+  refusedTimer = setTimeout(() => text($("refused"), ""), 5000);
+}
+
 function say(message, kind) {
   const reply = $("reply");
   text(reply, message);
@@ -381,9 +390,9 @@ async function answer(choice, keyName) {
   if (!d || inFlight || $(button).disabled) return;
   if (!settled()) {
     const label = { a: "A better", b: "B better", tie: "can't tell", skip: "skip" }[choice];
-    say(`${keyName ? "Key " + keyName : "Click"} (${label}) not taken: it came ` +
+    refuse(`${keyName ? "Key " + keyName : "Click"} (${label}) not taken: it came ` +
       `${Math.round(performance.now() - lastAnswerAt)} ms after your previous answer ` +
-      `(a double press?); answer duel ${d.duel_id} again if you meant it.`, "warn");
+      `(a double press?); answer duel ${d.duel_id} again if you meant it.`);
     return;
   }
   lastAnswerAt = performance.now();
@@ -425,8 +434,8 @@ async function answer(choice, keyName) {
 async function undo() {
   const u = state && state.undo;
   if (!u || inFlight) {
-    if (!inFlight) say("Nothing to undo" + (state && state.retracting && state.retracting.length
-      ? ": an undo is already on its way." : "."), "warn");
+    if (!inFlight) refuse("Nothing to undo" + (state && state.retracting && state.retracting.length
+      ? ": an undo is already on its way." : "."));
     return;
   }
   inFlight = true;
@@ -449,7 +458,7 @@ async function undo() {
 
 // A key that cannot be taken is refused where the person looks, never dropped silently.
 function tryAnswer(choice, keyName) {
-  if (review) { say(`Key ${keyName} not taken: you are reviewing a past duel (Esc goes back).`, "warn"); return; }
+  if (review) { refuse(`Key ${keyName} not taken: you are reviewing a past duel (Esc goes back).`); return; }
   const d = state && state.duel;
   const label = { a: "A better", b: "B better", tie: "can't tell", skip: "skip" }[choice];
   let why = "";
@@ -457,7 +466,7 @@ function tryAnswer(choice, keyName) {
   else if (!d || answeredIds.has(d.duel_id)) why = "no duel is ready yet (the next one is being prepared)";
   else if (choice !== "skip" && !d.ready) why = `duel ${d.duel_id} is waiting for its episode results`;
   else if (choice === "tie" && !state.run.ties) why = "this run does not take can't-tell answers";
-  if (why) { say(`Key ${keyName} (${label}) not taken: ${why}.`, "warn"); return; }
+  if (why) { refuse(`Key ${keyName} (${label}) not taken: ${why}.`); return; }
   answer(choice, keyName);
 }
 
