@@ -208,7 +208,7 @@ def warm_start_of(args: argparse.Namespace) -> tuple[str, str]:
     Raises:
         ValueError: ``--warm-start ars`` on a task without an ARS policy.
     """
-    from localpbo_sims.tasks import ARS_RADII
+    from localpbo_sims.tasks import ARS_RADII, VALUE_RANGES
 
     choice = getattr(args, "warm_start", "none")
     if choice == "auto":
@@ -224,6 +224,8 @@ def warm_start_of(args: argparse.Namespace) -> tuple[str, str]:
     algorithm_options = json.loads(args.algorithm_options)
     if not {"around_ars", "weight_low", "weight_high"} & set(task_options):
         task_options["around_ars"] = ARS_RADII[args.task]
+        # the noise scale a simulated oracle needs: the default box's (a person ignores it)
+        task_options.setdefault("value_range", VALUE_RANGES[args.task])
     if "around_ars" in task_options and "warm_start" not in algorithm_options:
         from localpbo_sims import make_task
 
