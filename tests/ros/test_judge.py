@@ -435,3 +435,236 @@ def test_the_optimizers_recommendation_is_shown(tmp_path: Path) -> None:
     bad = Status("judge-unit", "optimizer_node", "running", info={"recommended": "x1"})
     core.on_status(bad)  # not an id: the last good one stays
     assert core.view()["recommended"]["id"] == 1
+
+
+# ---------------------------------------------------------------------------- notes, time, undo
+def test_note_name_and_visible_time_journaled(tmp_path: Path) -> None:
+    core, published, _, clock = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    core.view()
+    clock.t += 30.0  # 30 s since the judge showed it; the page was visible for 4 s of them
+    extra = {"note": " steadier ", "judge": "Ada", "visible_seconds": 4.0, "hidden": True}
+    assert core.answer(body(**extra)).status == 200
+    assert published[0].answer_seconds == 4.0
+    line = json.loads((tmp_path / "judge-unit" / "answers.jsonl").read_text())
+    assert (line["note"], line["judge"], line["hidden"]) == ("steadier", "Ada", True)
+    assert line["server_seconds"] == 30.0
+    entry = core.view()["history"][0]
+    assert (entry["note"], entry["judge"], entry["hidden"]) == ("steadier", "Ada", True)
+    # a page's claim above the judge's own clock is capped by it
+    open_duel(core, 1, 0, 2)
+    core.view()
+    clock.t += 2.0
+    assert core.answer(body(duel_id=1, second_id=2, visible_seconds=50.0)).status == 200
+    assert published[1].answer_seconds == 2.0
+
+
+@pytest.mark.parametrize(
+    ("extra", "field"),
+    [
+        ({"note": "x" * 1001}, "note"),
+        ({"note": 3}, "note"),
+        ({"judge": "n" * 81}, "judge"),
+        ({"visible_seconds": -1}, "visible_seconds"),
+        ({"visible_seconds": True}, "visible_seconds"),
+        ({"hidden": "yes"}, "hidden"),
+    ],
+)
+def test_bad_optional_fields_refused(tmp_path: Path, extra: dict, field: str) -> None:
+    core, published, _, _ = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    reply = core.answer(body(**extra))
+    assert (reply.status, reply.body["field"], reply.body["reason"]) == (400, field, "wrong_type")
+    assert published == []
+
+
+def test_duplicate_json_keys_refused(tmp_path: Path) -> None:
+    core, published, dropped, _ = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    raw = b'{"duel_id": 0, "first_id": 0, "second_id": 1, "choice": "a", "choice": "b"}'
+    reply = core.answer(raw)
+    assert (reply.status, reply.body["field"], reply.reason) == (400, "choice", "duplicate_key")
+    assert published == [] and dropped[-1][0] == "http_duplicate_key"
+
+
+def test_undo_retracts_then_the_reasked_duel_is_answered_anew(tmp_path: Path) -> None:
+    core, published, _, _ = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    assert core.answer(body(choice="a")).status == 200
+    open_duel(core, 1, 0, 2)  # the optimizer's next duel
+    assert core.view()["undo"] == {"duel_id": 0, "answer": "A better"}
+    refused = core.undo(json.dumps({"duel_id": 1}).encode())
+    assert (refused.status, refused.reason) == (409, "not_latest")
+    reply = core.undo(json.dumps({"duel_id": 0}).encode())
+    assert reply.status == 200 and reply.body["undone"] == 0
+    assert published[-1] == DuelOutcome("judge-unit", 0, 0, 1, OutcomeKind.RETRACTED)
+    assert core.undo(json.dumps({"duel_id": 0}).encode()).reason == "undo_pending"
+    view = core.view()
+    assert view["retracting"] == [0] and view["history"][0]["undone"] == "undone"
+    assert view["progress"]["answered"] == 0
+    # the optimizer asks duel 0 again: it opens first, the later duel 1 is withdrawn
+    assert core.on_request(DuelRequest("judge-unit", 0, 0, 1)) is None
+    view = core.view()
+    assert view["duel"]["duel_id"] == 0 and view["progress"]["open"] == 1
+    assert core.counters["duels_withdrawn"] == 1
+    assert core.answer(body(choice="b")).status == 200
+    assert published[-1].winner_id == 1
+    # the journal: answer, undo, answer; a restarted judge stands by the last answer
+    lines = (tmp_path / "judge-unit" / "answers.jsonl").read_text().splitlines()
+    assert [next(iter(json.loads(x))) for x in lines] == ["duel_id", "undo", "duel_id"]
+    again, _, _, _ = make_core(tmp_path)
+    assert again.answered[0].winner_id == 1 and again.order == [0]
+
+
+def test_refused_undo_restores_the_answer(tmp_path: Path) -> None:
+    core, _, _, _ = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    assert core.answer(body(choice="a")).status == 200
+    status = Status("judge-unit", "optimizer_node", "running", counters={"duels_done": 1})
+    core.on_status(status)  # the optimizer's count of refusals so far: none
+    assert core.undo(json.dumps({"duel_id": 0}).encode()).status == 200
+    refused = Status(
+        "judge-unit",
+        "optimizer_node",
+        "running",
+        counters={"duels_done": 1, "retraction_refused": 1},
+    )
+    core.on_status(refused)
+    view = core.view()
+    assert view["retracting"] == [] and view["progress"]["answered"] == 1
+    assert "refused" in view["notice"] and view["history"][0]["undone"] == ""
+    assert core.counters["undo_refused"] == 1
+    again, _, _, _ = make_core(tmp_path)  # journal: answer, undo, restore
+    assert 0 in again.answered and not again.retracting
+
+
+def test_retraction_repeated_when_the_optimizer_asks_past_it(tmp_path: Path) -> None:
+    core, _, _, clock = make_core(tmp_path)
+    open_duel(core, 0, 0, 1)
+    assert core.answer(body()).status == 200
+    assert core.undo(json.dumps({"duel_id": 0}).encode()).status == 200
+    clock.t += 2.0  # the optimizer did not get it (restarted) and asks duel 1
+    again = core.on_request(DuelRequest("judge-unit", 1, 0, 2))
+    assert again == DuelOutcome("judge-unit", 0, 0, 1, OutcomeKind.RETRACTED)
+
+
+def test_every_change_bumps_the_version_and_wakes_waiters(tmp_path: Path) -> None:
+    core, _, _, _ = make_core(tmp_path)
+    before = core.version
+    woke: list[int] = []
+
+    def wait() -> None:
+        with core.changed:
+            core.changed.wait_for(lambda: core.version != before, timeout=5)
+            woke.append(core.version)
+
+    import threading
+
+    waiter = threading.Thread(target=wait)
+    waiter.start()
+    time.sleep(0.05)
+    open_duel(core, 0, 0, 1)
+    waiter.join(5)
+    assert woke and woke[0] > before
+    settled = core.version
+    core.on_status(Status("judge-unit", "optimizer_node", "running", counters={"duels_done": 0}))
+    core.on_status(Status("judge-unit", "optimizer_node", "running", counters={"duels_done": 0}))
+    assert core.version == settled + 1  # a heartbeat that changes nothing wakes nobody
+
+
+# ---------------------------------------------------------------------------- HTTP limits
+def raw_request(port: int, data: bytes, timeout: float = 10.0) -> tuple[bytes, float]:
+    """Send ``data``; the reply's first bytes and how long until the server closed."""
+    start = time.monotonic()
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as conn:
+        conn.sendall(data)
+        got = b""
+        while True:
+            chunk = conn.recv(65536)
+            if not chunk:
+                break
+            got += chunk
+    return got, time.monotonic() - start
+
+
+def test_http_limits_414_431_408(ros, judge: JudgeNode) -> None:
+    start_run(ros, judge, CONFIG)
+    secret = judge.url.rstrip("/").rsplit("/", 1)[1]
+    port = judge.web.port
+    # a request line over 8 KiB: 414, and the connection closed
+    got, _ = raw_request(port, b"GET /" + b"x" * 9000 + b" HTTP/1.1\r\nHost: x\r\n\r\n")
+    assert got.startswith(b"HTTP/1.1 414") and b"line_too_long" in got
+    # header lines over 8 KiB together (each line short): 431
+    headers = b"".join(b"X-Pad-%d: %s\r\n" % (i, b"y" * 200) for i in range(60))
+    got, _ = raw_request(
+        port, b"GET /%s/api/state HTTP/1.1\r\nHost: x\r\n" % secret.encode() + headers + b"\r\n"
+    )
+    assert got.startswith(b"HTTP/1.1 431") and b"headers_too_large" in got
+    # just below the limits: served
+    headers = b"".join(b"X-Pad-%d: %s\r\n" % (i, b"y" * 100) for i in range(30))
+    got, _ = raw_request(
+        port,
+        b"GET /%s/api/state HTTP/1.1\r\nHost: x\r\nConnection: close\r\n" % secret.encode()
+        + headers
+        + b"\r\n",
+    )
+    assert got.startswith(b"HTTP/1.1 200")
+    # a body shorter than its Content-Length: 408 after BODY_TIMEOUT_S, connection closed
+    from localpbo_ros.judge_web import BODY_TIMEOUT_S
+
+    got, took = raw_request(
+        port,
+        b'POST /%s/api/answer HTTP/1.1\r\nHost: x\r\nContent-Length: 100\r\n\r\n{"duel'
+        % secret.encode(),
+    )
+    assert got.startswith(b"HTTP/1.1 408") and b"body_timeout" in got
+    assert BODY_TIMEOUT_S - 0.5 <= took <= BODY_TIMEOUT_S + 3.0
+    for reason in ("line_too_long", "headers_too_large", "body_timeout"):
+        assert judge.counters[f"dropped_http_{reason}"] == 1
+
+
+def test_events_push_the_state_when_it_changes(ros, judge: JudgeNode) -> None:
+    start_run(ros, judge, CONFIG)
+    secret = judge.url.rstrip("/").rsplit("/", 1)[1]
+    conn = http.client.HTTPConnection("127.0.0.1", judge.web.port, timeout=10)
+    conn.request("GET", f"/{secret}/api/events")
+    resp = conn.getresponse()
+    assert resp.status == 200 and resp.headers["Content-Type"].startswith("text/event-stream")
+
+    def next_state() -> dict:
+        while True:
+            line = resp.fp.readline()
+            if line.startswith(b"data: "):
+                return json.loads(line[6:])
+
+    first = next_state()
+    assert first["run"]["run_id"] == CONFIG.run_id and first["duel"] is None
+    run = CONFIG.run_id
+    for cid in (0, 1):
+        ros.publish(CANDIDATE, CandidateMsg(run, cid, (0.2,) * CONFIG.dim).encode())
+        ros.publish(EPISODE_RESULT, EpisodeResult.ok(run, cid, float(cid)).encode())
+    ros.publish(DUEL_REQUEST, DuelRequest(run, 0, 0, 1).encode())
+    seen = first
+    end = time.monotonic() + 10
+    while not (seen["duel"] and seen["duel"]["ready"]) and time.monotonic() < end:
+        ros.spin_for(0.05)
+        seen = next_state()
+    assert seen["duel"]["ready"] and seen["version"] > first["version"]
+    conn.close()
+
+
+def test_restarted_judge_serves_on_the_runs_former_port(ros, tmp_path: Path) -> None:
+    state = str(tmp_path / "state")
+    first = ros.add(JudgeNode(context=ros.ctx, overrides={"state_dir": state}))
+    start_run(ros, first, CONFIG)
+    url, port = first.url, first.web.port
+    first.close()
+    ros.remove(first)
+    second = ros.add(JudgeNode(context=ros.ctx, overrides={"state_dir": state}))
+    try:
+        ros.publish(RUN_CONFIG, CONFIG.encode())
+        assert ros.spin_until(lambda: bool(second.url), 5.0)
+        assert second.url == url and second.web.port == port
+        assert fetch(url + "api/state")[0] == 200
+    finally:
+        second.close()
