@@ -503,3 +503,82 @@ def test_undo_in_the_browser_rebuilt_by_verify(browser: Any, tmp_path: Path) -> 
     assert final[second].winner_id == final[second].second_id  # the answer given after undo
     report = verify(run.bag)
     assert report.ok, report.format()
+
+
+def start_cli(*args: str) -> tuple[Any, list[str]]:
+    """``localpbo run ARGS`` as its own process; its output lines as they come."""
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "localpbo_ros.commands", "run", *args, "--no-progress"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+
+    threading.Thread(target=read, daemon=True).start()
+    return proc, lines
+
+
+def printed_url(lines: list[str]) -> str:
+    line = until(lambda: next((x for x in lines if "judge the duels at " in x), ""), 60)
+    return line.split("judge the duels at ", 1)[1].split()[0]
+
+
+def test_resume_keeps_the_person_and_the_open_tab(browser: Any, tmp_path: Path) -> None:
+    """The run is killed (SIGKILL) with the tab open; ``localpbo run --resume BAG`` without
+    --oracle continues with the person on the same URL, the tab reconnects without a reload,
+    and the counts agree; --oracle simulated is refused naming the flag."""
+    import signal
+
+    out = str(tmp_path)
+    options = '{"episode_steps": 200, "value_range": 50.0}'
+    first, lines = start_cli(
+        "--task", "swimmer", "--algorithm", "sobol", "--budget", "6", "--seed", "4",
+        "--task-options", options, "--oracle", "human", "--out", out, "--run-id", "kept",
+    )  # fmt: skip
+    try:
+        url = printed_url(lines)
+        browser.get(url)
+        browser.execute_script("window.sameTab = 42;")
+        for _ in range(2):
+            duel = duel_shown(browser)
+            press(browser, "a")
+            reply_text(browser, f"Recorded: duel {duel}")
+        duel_shown(browser, settle=False)
+    finally:
+        first.send_signal(signal.SIGKILL)
+        first.wait(30)
+    until(lambda: "Lost contact" in browser.find_element("id", "phase").text, 20)
+    bag = str(tmp_path / "kept.mcap")
+    refused, said = start_cli("--resume", bag, "--oracle", "simulated", "--out", out)
+    assert refused.wait(60) == 2
+    until(lambda: any("--oracle human" in x for x in said), 5)
+    second, lines = start_cli("--resume", bag, "--out", out)  # no --oracle: still the person
+    try:
+        assert printed_url(lines) == url
+        answered = 2
+        while True:
+            try:
+                duel = duel_shown(browser)
+            except AssertionError:
+                break
+            assert browser.execute_script("return window.sameTab") == 42  # never reloaded
+            press(browser, "b")
+            reply_text(browser, f"Recorded: duel {duel}")
+            answered += 1
+            if "thank you" in browser.find_element("id", "phase").text.lower():
+                break
+        assert second.wait(60) == 0, "".join(lines)
+    finally:
+        if second.poll() is None:
+            second.kill()
+    assert answered == 5
+    progress = browser.find_element("id", "progress-text").text
+    assert "you answered 5 duels · the optimizer counted 5" in progress, progress
+    resumed = load_run(tmp_path / "kept-resumed.mcap")
+    assert sorted(o.duel_id for o in resumed.outcomes) == list(range(5))
+    assert verify(tmp_path / "kept-resumed.mcap").ok

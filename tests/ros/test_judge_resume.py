@@ -166,31 +166,41 @@ def test_resumed_run_keeps_every_answer_once(tmp_path: Path) -> None:
 
 
 def test_cli_run_oracle_human_prints_the_url_and_waits(tmp_path: Path, capsys) -> None:
+    import subprocess
+    import sys
+
     from localpbo_ros.commands import main
 
     argv = ["run", "--oracle", "human", "--task", "swimmer", "--algorithm", "sobol"]
     argv += ["--budget", "4", "--seed", "1", "--task-options", SETTINGS["task_options"]]
     argv += ["--out", str(tmp_path), "--run-id", "cli", "--no-progress"]
-    code: list[int] = []
-    thread = threading.Thread(target=lambda: code.append(main(argv)), daemon=True)
-    thread.start()
-    printed = ""
-    end = time.monotonic() + 30
-    while "judge the duels at " not in printed and time.monotonic() < end:
-        printed += capsys.readouterr().out
-        time.sleep(0.05)
-    url = printed.split("judge the duels at ", 1)[1].split()[0]
-    assert url.startswith("http://127.0.0.1:") and url.endswith("/")
-    answered = 0
-    while thread.is_alive():
-        try:
-            duel = ready_duel(url, timeout=5)
-        except (AssertionError, OSError):
-            break
-        answer(url, duel, "b")
-        answered += 1
-    thread.join(30)
-    assert code == [0] and answered == 3
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "localpbo_ros.commands", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        printed = ""
+        while "judge the duels at " not in printed:
+            line = proc.stdout.readline()
+            assert line, "the command ended without printing the URL"
+            printed += line
+        url = printed.split("judge the duels at ", 1)[1].split()[0]
+        assert url.startswith("http://127.0.0.1:") and url.endswith("/")
+        answered = 0
+        while proc.poll() is None:
+            try:
+                duel = ready_duel(url, timeout=5)
+            except (AssertionError, OSError):
+                break
+            answer(url, duel, "b")
+            answered += 1
+        assert proc.wait(30) == 0 and answered == 3
+    finally:
+        if proc.poll() is None:
+            proc.kill()
     assert (tmp_path / "judge" / "cli" / "answers.jsonl").read_text().count("\n") == 3
     capsys.readouterr()
     assert main(["bag-info", str(tmp_path / "cli.mcap")]) == 0
