@@ -16,6 +16,16 @@ A step that lands (within ``DUPLICATE_ATOL``) on the old center reuses it (no ev
 
 The reported incumbent (``PreferenceOptimizer.incumbent``) is the current local incumbent:
 the latest winner of the phase's duel chain.
+
+Duel-gated steps (an option of the subclasses, beyond the paper; off by default): instead of
+moving to the step's point ``x'`` unconditionally, a subclass calls :meth:`_ask_trial` with
+one or more trial points. The next ask evaluates them and duels each against the local
+incumbent ``x*`` (the king of the phase's duel chain: ``x_t`` unless a local query beat it).
+If some trial point wins, the next center is the winner (with several winners, the one of
+highest posterior mean under a refit on every duel, ties to the lowest id); it is already
+evaluated, so no step center is pending. If none wins, the step is rejected and the next
+phase starts at ``x*``. The trial points are the phase's last queries: ``N`` evaluations then
+give ``N - 1 - G`` comparisons as before, ``G`` counting only the ungated step centers.
 """
 
 from __future__ import annotations
@@ -24,8 +34,9 @@ import abc
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import torch
 
-from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer
+from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
 from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
 from localpbo_core.surrogate import Surrogate
@@ -66,6 +77,8 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         self._center_pending = False  # a step center not evaluated yet
         self._local_inc_id: int | None = None  # None while the center is pending
         self._final_center_duel = False
+        self._trial_thetas: list[np.ndarray] | None = None  # gated step points to ask next
+        self._trial_active = False  # the open ask is a trial ask
         self._surrogate: Surrogate | None = None
         self._fit_key: tuple[int, int] | None = None
         #: Number of steps whose new center was evaluated (``G`` of App. D.1).
@@ -112,6 +125,12 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
             self._local_inc_id = self._center_id
             self.centers.append(self._center_theta.copy())
             self._start_phase()
+        if self._trial_thetas is not None:
+            trial = self._register(self._trial_thetas[:remaining])
+            self._trial_thetas = None
+            self._trial_active = True
+            inc = self._require_incumbent()
+            return Ask(tuple(trial), tuple(Duel(c.id, inc) for c in trial))
         if self._center_pending and remaining == 1:
             new = self._register([self._center_theta])
             self._center_id = new[0].id
@@ -146,9 +165,62 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         self.centers.append(self._center_theta.copy())
         self._start_phase()
 
+    def _ask_trial(self, thetas: Sequence[np.ndarray]) -> None:
+        """End the phase with a duel-gated step (module docstring): the next ask evaluates
+        ``thetas`` (clipped to the cube; points within ``DUPLICATE_ATOL`` of the center are
+        dropped) and duels each against the local incumbent. Without any point left the
+        phase restarts at the local incumbent."""
+        assert self._center_theta is not None
+        pts = [np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0) for t in thetas]
+        pts = [t for t in pts if np.max(np.abs(t - self._center_theta)) > DUPLICATE_ATOL]
+        if not pts:
+            self._adopt_center(self._require_incumbent())
+            return
+        self._trial_thetas = pts
+
+    def _adopt_center(self, candidate_id: int) -> None:
+        """Start the next phase at the evaluated candidate ``candidate_id`` (it becomes the
+        center and the local incumbent; no step center is pending)."""
+        self._center_id = int(candidate_id)
+        self._center_theta = np.array(self._candidates[candidate_id].theta)
+        self._center_pending = False
+        self._local_inc_id = self._center_id
+        self._set_incumbent(self._center_id)
+        self.centers.append(self._center_theta.copy())
+        self._start_phase()
+
+    def _after_trial(
+        self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
+    ) -> None:
+        """Accept the best winning trial point or reject the step (module docstring). A
+        "can't tell" answer is no win."""
+        inc = self._require_incumbent()
+        ids = {c.id for c in candidates}
+        winners = sorted(
+            o.winner
+            for o in outcomes
+            if isinstance(o, Outcome) and o.loser == inc and o.winner in ids
+        )
+        if not winners:
+            self._adopt_center(inc)
+            return
+        best = winners[0]
+        if len(winners) > 1:
+            surrogate = self._fit()
+            X = torch.tensor(
+                np.stack([self._candidates[w].theta for w in winners]), dtype=torch.float64
+            )
+            with torch.no_grad():
+                best = winners[int(torch.argmax(surrogate.mean(X)))]
+        self._adopt_center(best)
+
     def _on_step_complete(
         self, candidates: tuple[Candidate, ...], outcomes: tuple[DuelAnswer, ...]
     ) -> None:
+        if self._trial_active:
+            self._trial_active = False
+            self._after_trial(candidates, outcomes)
+            return
         if self._final_center_duel:  # the last evaluation: center vs the incumbent
             self._final_center_duel = False
             self._update_king(outcomes)

@@ -46,6 +46,37 @@ with ``floor = eigenvalue_floor * max(max|lambda|, 1e-12)`` (Nocedal & Wright's
 absolute-value modification, sign-flipped for maximisation: positive curvature directions
 are kept as ascent directions, never dropped); the incumbent after a phase is the first
 (lowest id) local sample that beat ``x_t``, else ``x_t``.
+
+Beyond the paper (options, off by default; the defaults are the paper's settings and give
+the paper's candidates). Under 10 % noise the ``eps = 0.05`` ball holds true differences of a
+few hundredths of the noise's standard deviation, so about half its duels are decided by the
+noise and the Newton step, not normalised, often leaves the box. Each option addresses one
+cause:
+
+* ``sampling_radius="lengthscale"``: the ``M`` samples are uniform in the ellipsoid
+  ``{x_t + rho l * u : |u| <= 1} cap [0,1]^d`` (``l`` the ARD lengthscales of the last fit,
+  elementwise product, ``rho = radius_scale``, default 1), by the same rejection as the
+  ball. Every sample then lies within ``rho`` in the kernel metric ``|x - x_t|_Lambda``,
+  ``Lambda = diag(1 / l^2)``: the prior correlation with ``x_t`` is at least
+  ``exp(-rho^2 / 2)`` whatever the lengthscales, and the differences dueled are of the order
+  of the function's local variation rather than of a fixed 0.05.
+* ``step_normalization="kernel"``: the subproblem's solution is rescaled to length
+  ``eta = step_size`` in the kernel metric, ``p <- eta p / sqrt(p^T Lambda p)`` (GIPBO's
+  normalisation, App. C.2; default ``eta = 0.5``), before the line search. The Newton
+  direction is kept; its length, which the noisy Hessian sets, is not.
+* ``line_search="duel"``: instead of choosing ``eta`` on the model, the ``K = duel_points``
+  points ``Pi(x_t + (k/K) p)``, ``k = 1..K``, are evaluated and each dueled against the local
+  incumbent (as the line search of BayeSQP's code evaluates its points; with preferences the
+  evaluations are duels). The winner of highest posterior mean becomes ``x_{t+1}``; with no
+  winner the step is rejected and ``x_{t+1}`` is the local incumbent. K evaluations and K
+  comparisons per phase.
+* ``accept_step="duel"``: the line search's point ``x'`` is evaluated and dueled against the
+  local incumbent in an ask of its own; ``x_{t+1} = x'`` if it wins, else the local
+  incumbent. Same evaluations as the paper's, one more comparison per phase.
+
+The gating mechanics (trial asks, the accounting) are :mod:`.local_phase`'s "duel-gated
+steps"; the ``"duel"`` line search is gated by construction, ``accept_step`` adds nothing
+to it.
 """
 
 from __future__ import annotations
@@ -64,8 +95,11 @@ from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.surrogate import Surrogate
 from localpbo_core.validation import check_choice, check_float, check_int
 
-LINE_SEARCHES = ("thompson", "full", "eubo")
+LINE_SEARCHES = ("thompson", "full", "eubo", "duel")
 SUBPROBLEMS = ("newton", "ev")
+SAMPLING_RADII = ("fixed", "lengthscale")
+STEP_NORMALIZATIONS = ("none", "kernel")
+ACCEPT_STEPS = ("always", "duel")
 _MAX_REJECTION_ROUNDS = 1000
 
 
@@ -151,16 +185,42 @@ def ev_subproblem(
     return best
 
 
+def kernel_normalized_step(p: np.ndarray, lengthscale: np.ndarray, step_size: float) -> np.ndarray:
+    """``eta p / sqrt(p^T Lambda p)``, ``Lambda = diag(1 / l^2)``: the direction ``p`` scaled to
+    length ``eta`` in the kernel metric (as GIPBO's step, App. C.2). Zero for a zero or
+    non-finite ``p``."""
+    p = np.asarray(p, dtype=np.float64)
+    norm = float(np.sqrt(np.sum(p * p / np.asarray(lengthscale, dtype=np.float64) ** 2)))
+    if not np.isfinite(norm) or norm == 0.0:
+        return np.zeros_like(p)
+    return step_size * p / norm
+
+
+def duel_line_points(x: np.ndarray, p: np.ndarray, count: int) -> np.ndarray:
+    """``Pi([0,1]^d)(x + eta_k p)`` for ``eta_k = k / K``, ``k = 1..K`` (the points the
+    ``"duel"`` line search evaluates and duels)."""
+    eta = np.arange(1, count + 1, dtype=np.float64) / count
+    return np.clip(x[None, :] + eta[:, None] * p[None, :], 0.0, 1.0)
+
+
 def line_search_points(x: np.ndarray, p: np.ndarray, resolution: int = 100) -> np.ndarray:
     """``Pi([0,1]^d)(x + eta_r p)`` for ``eta_r = 0, 1/(R-1), ..., 1`` (Alg. PrefSQP)."""
     eta = np.linspace(0.0, 1.0, resolution)
     return np.clip(x[None, :] + eta[:, None] * p[None, :], 0.0, 1.0)
 
 
-def ball_samples(center: np.ndarray, radius: float, n: int, rng: np.random.Generator) -> np.ndarray:
+def ball_samples(
+    center: np.ndarray,
+    radius: float,
+    n: int,
+    rng: np.random.Generator,
+    axes: np.ndarray | None = None,
+) -> np.ndarray:
     """``n`` points uniform in ``B_radius(center) cap [0,1]^d`` by rejection (uniform in the
     ball: Gaussian direction, radius ``radius * U^{1/d}``). After 1000 rounds without enough
-    accepted points the remaining ones are projected onto the cube."""
+    accepted points the remaining ones are projected onto the cube. With ``axes`` (shape
+    ``(d,)``, positive) the ball is stretched to the ellipsoid ``{center + radius a * u : |u|
+    <= 1}`` (``a * u`` elementwise), still uniform."""
     d = center.shape[0]
     out: list[np.ndarray] = []
 
@@ -168,6 +228,8 @@ def ball_samples(center: np.ndarray, radius: float, n: int, rng: np.random.Gener
         z = rng.standard_normal((k, d))
         z /= np.maximum(np.linalg.norm(z, axis=1, keepdims=True), 1e-300)
         r = radius * rng.random((k, 1)) ** (1.0 / d)
+        if axes is not None:
+            return center + r * z * axes[None, :]
         return center + r * z
 
     for _ in range(_MAX_REJECTION_ROUNDS):
@@ -197,6 +259,16 @@ class PrefSQP(LocalPhaseOptimizer):
         hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
             "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
             :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        sampling_radius: ``"fixed"`` (default: the ball of radius ``epsilon``) or
+            ``"lengthscale"`` (the ellipsoid of semi-axes ``radius_scale * l``; beyond the
+            paper, module docstring).
+        radius_scale: ``rho`` of the ``"lengthscale"`` radius (default 1.0).
+        step_normalization: ``"none"`` (default: the Newton step as solved) or ``"kernel"``
+            (length ``step_size`` in the kernel metric; beyond the paper).
+        step_size: ``eta`` of the ``"kernel"`` normalization (default 0.5, GIPBO's).
+        duel_points: K, points of the ``"duel"`` line search (default 3).
+        accept_step: ``"always"`` (default) or ``"duel"`` (the line search's point becomes
+            the center only if it wins a duel; beyond the paper).
     """
 
     name = "prefsqp"
@@ -218,6 +290,12 @@ class PrefSQP(LocalPhaseOptimizer):
         eigenvalue_floor: float = 1e-6,
         hyperparameters: Mapping[str, object] | None = None,
         tie_threshold: float = 0.0,
+        sampling_radius: str = "fixed",
+        radius_scale: float = 1.0,
+        step_normalization: str = "none",
+        step_size: float = 0.5,
+        duel_points: int = 3,
+        accept_step: str = "always",
     ) -> None:
         super().__init__(
             dim,
@@ -246,6 +324,16 @@ class PrefSQP(LocalPhaseOptimizer):
         self.eigenvalue_floor = check_float(
             "eigenvalue_floor", eigenvalue_floor, minimum=0.0, maximum=1.0, minimum_open=True
         )
+        self.sampling_radius = check_choice("sampling_radius", sampling_radius, SAMPLING_RADII)
+        self.radius_scale = check_float(
+            "radius_scale", radius_scale, minimum=0.0, minimum_open=True
+        )
+        self.step_normalization = check_choice(
+            "step_normalization", step_normalization, STEP_NORMALIZATIONS
+        )
+        self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
+        self.duel_points = check_int("duel_points", duel_points)
+        self.accept_step = check_choice("accept_step", accept_step, ACCEPT_STEPS)
         #: Step directions (subproblem solutions) of every completed phase (inspection, tests).
         self.directions: list[np.ndarray] = []
 
@@ -254,6 +342,9 @@ class PrefSQP(LocalPhaseOptimizer):
         assert self._center_theta is not None
         rng = step_generator(self.seed, self._step)
         n = min(self.num_local_samples, remaining)
+        if self.sampling_radius == "lengthscale":
+            ls = self._fit().lengthscale.detach().numpy().reshape(-1)
+            return list(ball_samples(self._center_theta, self.radius_scale, n, rng, axes=ls))
         return list(ball_samples(self._center_theta, self.epsilon, n, rng))
 
     def _local_opponent(self) -> int:
@@ -286,9 +377,20 @@ class PrefSQP(LocalPhaseOptimizer):
             p = ev_subproblem(self._center_theta, g, H, sigma, self.ev_delta, self.eigenvalue_floor)
         else:
             p = newton_direction(g, H, self.eigenvalue_floor)
+        if self.step_normalization == "kernel":
+            p = kernel_normalized_step(
+                p, surrogate.lengthscale.detach().numpy().reshape(-1), self.step_size
+            )
         self.directions.append(p)
+        if self.line_search == "duel":
+            self._ask_trial(list(duel_line_points(self._center_theta, p, self.duel_points)))
+            return
         rng = step_generator(self.seed, self._step, 1)
-        self._move_center(self._line_search(surrogate, self._center_theta, p, rng))
+        nxt = self._line_search(surrogate, self._center_theta, p, rng)
+        if self.accept_step == "duel":
+            self._ask_trial([nxt])
+        else:
+            self._move_center(nxt)
 
     def _line_search(
         self, surrogate: Surrogate, x: np.ndarray, p: np.ndarray, rng: np.random.Generator

@@ -271,3 +271,167 @@ def test_ev_improves_on_smooth_2d_problem_and_is_deterministic() -> None:
     ]
     assert all(np.array_equal(a, b) for a, b in zip(runs[0], runs[1], strict=True))
     assert not all(np.array_equal(a, b) for a, b in zip(runs[0], runs[2], strict=True))
+
+
+# ---------------------------------------------------------------- beyond the paper (options)
+BEYOND = {
+    "sampling_radius": {"sampling_radius": "lengthscale"},
+    "step_normalization": {"step_normalization": "kernel"},
+    "line_search_duel": {"line_search": "duel"},
+    "accept_step": {"accept_step": "duel"},
+    "all": {
+        "sampling_radius": "lengthscale",
+        "step_normalization": "kernel",
+        "accept_step": "duel",
+    },
+}
+
+
+def _kernel_norm(v: np.ndarray, ls: np.ndarray) -> float:
+    return float(np.sqrt(np.sum(np.asarray(v) ** 2 / ls**2)))
+
+
+def test_lengthscale_radius_samples_lie_in_the_kernel_ellipsoid() -> None:
+    opt = make_optimizer("prefsqp", 4, seed=3, budget=40, sampling_radius="lengthscale")
+    vals: dict[int, float] = {}
+    phases = beyond_fixed = 0
+    while not opt.done:
+        ask = opt.ask()
+        # the queries are the candidates dueled; the fit of this ask set their ellipsoid
+        queries = [c for c in ask.candidates if any(d.first == c.id for d in ask.duels)]
+        if opt.surrogate is not None and len(queries) > 1:
+            ls = opt.surrogate.lengthscale.detach().numpy()
+            dist = [_kernel_norm(q.theta - opt.center, ls) for q in queries]
+            assert max(dist) <= 1.0 + 1e-9  # radius_scale 1 in the kernel metric
+            phases += 1
+            beyond_fixed += any(np.linalg.norm(q.theta - opt.center) > 0.05 for q in queries)
+        for c in ask.candidates:
+            vals[c.id] = _quad(c.theta)
+        opt.tell(
+            [
+                Outcome(d.first, d.second)
+                if vals[d.first] >= vals[d.second]
+                else Outcome(d.second, d.first)
+                for d in ask.duels
+            ]
+        )
+    # the paper's 0.05 ball would hold every sample: the option is what moves them out
+    assert phases >= 3 and beyond_fixed >= phases - 1
+
+
+def test_kernel_normalized_steps_have_length_eta_in_the_kernel_metric() -> None:
+    opt = make_optimizer("prefsqp", 3, seed=1, budget=30, step_normalization="kernel")
+    vals: dict[int, float] = {}
+    checked = 0
+    while not opt.done:
+        ask = opt.ask()
+        for c in ask.candidates:
+            vals[c.id] = _quad(c.theta)
+        before = len(opt.directions)
+        opt.tell(
+            [
+                Outcome(d.first, d.second)
+                if vals[d.first] >= vals[d.second]
+                else Outcome(d.second, d.first)
+                for d in ask.duels
+            ]
+        )
+        if len(opt.directions) > before:  # this tell ended a phase: its fit set the metric
+            ls = opt.surrogate.lengthscale.detach().numpy()
+            assert np.isclose(_kernel_norm(opt.directions[-1], ls), 0.5, rtol=1e-9)
+            checked += 1
+    assert checked >= 3
+
+
+def _older_wins(opt: PrefSQP) -> list[tuple[tuple[int, ...], tuple[tuple[int, int], ...]]]:
+    """Drive with a judge that always prefers the older candidate (lower id); returns each
+    ask's candidate ids and duels."""
+    asks = []
+    while not opt.done:
+        ask = opt.ask()
+        asks.append(
+            (tuple(c.id for c in ask.candidates), tuple((d.first, d.second) for d in ask.duels))
+        )
+        opt.tell([Outcome(min(d.first, d.second), max(d.first, d.second)) for d in ask.duels])
+    return asks
+
+
+def test_duel_gated_step_never_moves_to_a_losing_point() -> None:
+    # every newer candidate loses: a gated step is always rejected, the center stays put
+    gated = make_optimizer("prefsqp", 3, seed=0, budget=30, accept_step="duel")
+    asks = _older_wins(gated)
+    first_center = gated.centers[0]
+    assert all(np.array_equal(c, first_center) for c in gated.centers)
+    # trial asks: one candidate dueled against the incumbent (the first center)
+    trials = [a for a in asks[1:] if len(a[0]) == 1]
+    assert len(trials) >= 3
+    assert all(len(duels) == 1 and duels[0][1] == gated.incumbent.id for _, duels in trials)
+    assert gated.gradient_steps == 0
+    # the paper's rule moves the center anyway
+    plain = make_optimizer("prefsqp", 3, seed=0, budget=30)
+    _older_wins(plain)
+    assert any(not np.array_equal(c, plain.centers[0]) for c in plain.centers)
+
+
+def test_duel_line_search_evaluates_and_duels_its_points() -> None:
+    opt = make_optimizer("prefsqp", 3, seed=2, budget=40, line_search="duel", duel_points=3)
+    vals: dict[int, float] = {}
+    trials = 0
+    while not opt.done:
+        phase_dirs = len(opt.directions)
+        center = None if opt.center is None else opt.center.copy()
+        ask = opt.ask()
+        for c in ask.candidates:
+            vals[c.id] = _quad(c.theta)
+        if phase_dirs and opt._trial_active:  # a line-search ask
+            trials += 1
+            p = opt.directions[-1]
+            expected = np.clip(center + np.array([1 / 3, 2 / 3, 1.0])[:, None] * p, 0, 1)
+            got = np.stack([c.theta for c in ask.candidates])
+            assert len(got) <= 3
+            assert np.allclose(got, expected[-len(got) :]) or np.allclose(got, expected[: len(got)])
+            inc = opt.incumbent.id
+            assert all(d.second == inc for d in ask.duels)
+        outs = [
+            Outcome(d.first, d.second)
+            if vals[d.first] >= vals[d.second]
+            else Outcome(d.second, d.first)
+            for d in ask.duels
+        ]
+        opt.tell(outs)
+    assert trials >= 3
+    # every center after the first is an evaluated candidate that won its duel, or the old one
+    ids = {c.theta.tobytes() for c in opt.history.candidates}
+    assert all(c.tobytes() in ids for c in opt.centers)
+
+
+@pytest.mark.parametrize("variant", sorted(BEYOND))
+def test_beyond_options_are_deterministic_and_change_the_run(variant: str) -> None:
+    opts = BEYOND[variant]
+    runs = [drive(make_optimizer("prefsqp", 3, seed=s, budget=24, **opts), _quad) for s in (4, 4)]
+    assert all(np.array_equal(a, b) for a, b in zip(runs[0], runs[1], strict=True))
+    plain = drive(make_optimizer("prefsqp", 3, seed=4, budget=24), _quad)
+    assert not all(np.array_equal(a, b) for a, b in zip(runs[0], plain, strict=True))
+
+
+@pytest.mark.parametrize("variant", ["all", "line_search_duel"])
+def test_beyond_options_improve_on_smooth_problem(variant: str) -> None:
+    gaps = []
+    for seed in range(3):
+        opt = make_optimizer("prefsqp", 6, seed, 62, **BEYOND[variant])
+        vals = np.array([_quad(t) for t in drive(opt, _quad)])
+        gaps.append((vals.max() - vals[:2].max()) / -vals[:2].max())
+    assert min(gaps) > 0.4 and np.median(gaps) > 0.8, gaps
+
+
+def test_beyond_options_validation_names_the_field() -> None:
+    for kw, field in (
+        ({"sampling_radius": "ball"}, "sampling_radius"),
+        ({"radius_scale": 0.0}, "radius_scale"),
+        ({"step_normalization": "unit"}, "step_normalization"),
+        ({"step_size": -1.0}, "step_size"),
+        ({"duel_points": 0}, "duel_points"),
+        ({"accept_step": "maybe"}, "accept_step"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            make_optimizer("prefsqp", 3, **kw)
