@@ -131,6 +131,21 @@ STATUS = TopicSpec(
     "node state and drop counters",
 )
 
+SPECULATIVE_CANDIDATE = TopicSpec(
+    "speculative_candidate",
+    "/localpbo/speculative_candidate",
+    Float64MultiArray,
+    "std_msgs/msg/Float64MultiArray",
+    EVENT_QOS,
+    "optimizer (speculate)",
+    ("simulator", "judge"),
+    "CandidateMsg",
+    "a candidate the next ask may propose (prepared branch); evaluated ahead, never recorded",
+)
+"""Not one of :data:`ALL_TOPICS`: work that may never be asked is not part of the run's
+record. An evaluator may run its episode ahead and keep the result for the real candidate
+message with the same id and θ (episodes are a function of run seed, id and θ)."""
+
 ALL_TOPICS: tuple[TopicSpec, ...] = (
     CANDIDATE,
     EPISODE_RESULT,

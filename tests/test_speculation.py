@@ -5,11 +5,12 @@ from __future__ import annotations
 import time
 
 import pytest
+import torch
 
 from localpbo_core.optimizers import available_optimizers
 from localpbo_core.session import Answer, AnswerKind, Session, Step
 from localpbo_core.settings import RunSettings
-from localpbo_core.speculation import Speculation, possible_answers
+from localpbo_core.speculation import Speculation, possible_answers, predicted
 
 
 def _settings(algorithm: str, budget: int = 16, ties: bool = False) -> RunSettings:
@@ -102,8 +103,7 @@ def test_the_cant_tell_branch_is_prepared_when_ties_are_modelled() -> None:
     session = _open_session(ties=True)
     spec = Speculation(session)
     spec.run()
-    indifferent = spec.answers[2]
-    assert indifferent.kind is AnswerKind.INDIFFERENT
+    (indifferent,) = [a for a in spec.answers if a.kind is AnswerKind.INDIFFERENT]
     assert spec.ready == spec.answers  # all three answers have a branch
     branch = spec.take(indifferent)
     assert branch is not None and branch.verdict.accepted and branch.step is not None
@@ -197,3 +197,34 @@ def test_speculation_computes_the_current_recommendation_on_a_fork() -> None:
     cancelled.cancel()
     cancelled.run()
     assert cancelled.recommendation is None
+
+
+def test_branches_are_prepared_most_likely_first() -> None:
+    session = _open_session(ties=True)
+    surrogate = session.optimizer.surrogate
+    assert surrogate is not None
+    probs = predicted(session)
+    assert probs is not None and abs(sum(probs) - 1.0) < 1e-9 and min(probs) >= 0
+    duel = session.pending()[0]
+    a = torch.tensor(session.candidate(duel.first).theta)
+    b = torch.tensor(session.candidate(duel.second).theta)
+    assert probs[0] == pytest.approx(float(surrogate.preference_probability(a, b)))
+    assert probs[2] == pytest.approx(float(surrogate.tie_probability(a, b)))
+    seen: list[Answer] = []
+    spec = Speculation(session, on_branch=lambda branch: seen.append(branch.answer))
+    assert set(spec.answers) == set(possible_answers(session))
+    assert spec.probabilities == tuple(sorted(probs, reverse=True))
+    spec.run()
+    assert seen == list(spec.answers)  # computed and handed over in that order
+    by_probability = dict(zip(possible_answers(session), probs, strict=True))
+    assert spec.answers[0] == max(by_probability, key=lambda a: by_probability[a])
+
+
+def test_without_a_model_the_order_is_first_second_cant_tell() -> None:
+    session = Session(_settings("sobol", ties=True))
+    step = session.ask()
+    while len(session.pending()) != 1:
+        assert session.offer(Answer.decisive(step.duels[0], step.duels[0].first)).accepted
+    assert predicted(session) is None
+    spec = Speculation(session)
+    assert spec.answers == possible_answers(session) and spec.probabilities is None

@@ -27,6 +27,7 @@ _REGISTRY: dict[str, str | Factory] = {
     "gipbor": "localpbo_core.optimizers.gipbo:GIPBOr",
     "prefsqp": "localpbo_core.optimizers.prefsqp:PrefSQP",
     "hbei": "localpbo_core.optimizers.hbei:HBEI",
+    "hybrid": "localpbo_core.optimizers.hybrid:Hybrid",
 }
 
 _RUN_ARGUMENTS = ("self", "dim", "seed", "budget")

@@ -46,7 +46,7 @@ recorded before ties existed load and verify unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,7 +71,7 @@ from localpbo_core.settings import (
     SettingError,
 )
 from localpbo_core.space import ParameterSpace, parse_space
-from localpbo_core.speculation import Speculation
+from localpbo_core.speculation import Branch, Speculation
 from localpbo_msgs_py import CandidateMsg, DuelOutcome, Incumbent, RunConfig
 from localpbo_msgs_py import DuelRequest as DuelRequestMsg
 from localpbo_msgs_py.records import OutcomeKind
@@ -348,16 +348,28 @@ class Driver:
             step = self.session.ask()
         return Work(tuple(self.candidate_msg(c) for c in step.candidates), self.pending_requests())
 
-    def speculate(self) -> Speculation | None:
+    def speculate(self, on_branch: Callable[[Branch], None] | None = None) -> Speculation | None:
         """Start preparing the next ask for every possible answer of the last pending duel
-        (background thread) and return the speculation; None, doing nothing, unless exactly
-        one duel is pending."""
+        (background thread, most likely answer first) and return the speculation; None,
+        doing nothing, unless exactly one duel is pending. ``on_branch`` gets each prepared
+        branch in that thread (:meth:`branch_candidates`: what to evaluate ahead)."""
         self.cancel_speculation()
         if self._prepared is not None or len(self.session.pending()) != 1:
             return None
-        self._speculation = Speculation(self.session, recommend=True).start()
+        self._speculation = Speculation(self.session, recommend=True, on_branch=on_branch)
+        self._speculation.start()
         self._shown = self._speculation
         return self._speculation
+
+    def branch_candidates(self, branch: Branch) -> tuple[CandidateMsg, ...]:
+        """The new candidates a prepared branch's next ask would propose (task units): what
+        an evaluator may run ahead. Never part of the run until that answer arrives."""
+        if branch.step is None:
+            return ()
+        return tuple(
+            CandidateMsg(self.run_id, c.id, tuple(float(v) for v in branch.session.native(c.theta)))
+            for c in branch.step.candidates
+        )
 
     def prepared_recommendation(self) -> CandidateMsg | None:
         """The recommendation the last speculation computed for the current state (task

@@ -19,7 +19,10 @@ is pending, the next ask is prepared for each of its possible answers in a backg
 answer arrives; what is asked is the same either way. Every duel request carries
 ``decision_seconds``: the time from the answer that completed the previous ask to the request
 (``localpbo bag-info`` summarises them). Counter: ``speculated`` (answers whose next ask was
-ready). The speculation also computes the current recommendation (highest posterior mean
+ready). Each prepared branch's new candidates go out on ``/localpbo/speculative_candidate``
+(not recorded), so an evaluator runs their episodes ahead and answers the real candidate at
+once (:mod:`localpbo_ros.sim_node`); the bag is the same with or without. The speculation
+also computes the current recommendation (highest posterior mean
 utility), announced as ``info.recommended`` in the node's status for the judge's page.
 
 Undo (a person's): a ``retracted`` outcome takes back the latest accepted answer (up to
@@ -63,6 +66,7 @@ from localpbo_core.settings import (
     SettingError,
 )
 from localpbo_core.space import load_space
+from localpbo_core.speculation import Branch
 from localpbo_msgs_py import (
     CandidateMsg,
     DecodeError,
@@ -81,6 +85,7 @@ from localpbo_msgs_py.topics import (
     EPISODE_RESULT,
     INCUMBENT,
     RUN_CONFIG,
+    SPECULATIVE_CANDIDATE,
     STATUS,
 )
 from localpbo_ros.base import SuiteNode
@@ -362,6 +367,7 @@ class OptimizerNode(SuiteNode):
         self._pub_candidate = self.publisher(CANDIDATE)
         self._pub_request = self.publisher(DUEL_REQUEST)
         self._pub_incumbent = self.publisher(INCUMBENT)
+        self._pub_ahead = self.publisher(SPECULATIVE_CANDIDATE)
         self.pool = WorkerPool(self.settings["worker_timeout_s"], self.settings["worker_queue"])
         self.subscribe(DUEL_OUTCOME, self._on_outcome)
         self.subscribe(STATUS, self._on_status)
@@ -458,8 +464,15 @@ class OptimizerNode(SuiteNode):
         self._speculate()
 
     def _speculate(self) -> None:
-        if self.settings["speculate"] and self.driver.speculate() is not None:
+        if self.settings["speculate"] and self.driver.speculate(self._ahead) is not None:
             self.counters["speculations"] += 1
+
+    def _ahead(self, branch: Branch) -> None:
+        """A prepared branch (speculation thread): its new candidates go out on the
+        unrecorded speculative topic, so their episodes run while the person judges."""
+        for cand in self.driver.branch_candidates(branch):
+            self._pub_ahead.publish(cand.encode())
+            self.counters["candidates_ahead"] += 1
 
     def _publish_request(self, req: DuelRequest) -> None:
         timed = req.with_decision_seconds(self._decision_s.get(req.duel_id))

@@ -12,6 +12,13 @@ candidate seen again with the same θ gets its stored result re-published (no se
 a failed episode is re-run when its candidate is published again (retry). An evaluator that
 raises, or returns a non-finite value, yields a ``failed`` episode result.
 
+Ahead of time (``/localpbo/speculative_candidate``, published by an optimizer that
+speculates): a candidate the next ask may propose is evaluated while the current duel is
+judged and its return kept (at most ``AHEAD_KEPT``, by id and θ); when the real candidate
+arrives with the same id and θ, that return is published at once (``episodes_ahead_used``) —
+the number the episode would give now, since it is a function of run seed, id and θ. An
+episode ahead that fails or is never asked for leaves no trace.
+
 Pool worker (:mod:`localpbo_ros.pool`): the node announces its worker id
 (``<node name>.<8 hex>``) and the candidate it evaluates in its status heartbeats
 (``info.worker``, ``info.busy``; one heartbeat also goes out as an episode starts). It
@@ -25,6 +32,7 @@ state ``stopped`` on its way out, and its candidate goes to another worker at on
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any, NoReturn
 
@@ -34,8 +42,12 @@ from rclpy.context import Context
 from localpbo_core.seeds import episode_seed
 from localpbo_core.session import evaluate_native
 from localpbo_msgs_py import RunConfig
+from localpbo_msgs_py.topics import SPECULATIVE_CANDIDATE
 from localpbo_ros.driver import problem_of
 from localpbo_ros.evaluator import EvaluatorNode
+
+AHEAD_KEPT = 16
+"""Returns of episodes run ahead kept (oldest dropped)."""
 
 Evaluator = Callable[[RunConfig, int, np.ndarray], float]
 """``(run config, candidate id, θ in task units as received) -> episode return``."""
@@ -59,6 +71,8 @@ class SimNode(EvaluatorNode):
         super().__init__("sim_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._evaluator = evaluator
         self._problem: Any = None
+        self._ahead: OrderedDict[tuple[int, tuple[float, ...]], float] = OrderedDict()
+        self.subscribe(SPECULATIVE_CANDIDATE, self._on_speculative)
         self.publish_status()  # announce the worker now, not a status period later
 
     @property
@@ -71,6 +85,11 @@ class SimNode(EvaluatorNode):
         to another worker at once instead of after ``worker_timeout_s``."""
         self.state = "stopped"
         self.publish_status()
+
+    def reset(self) -> None:
+        """Forget the previous run, its episodes run ahead too."""
+        super().reset()
+        self._ahead.clear()
 
     def adopt(self, config: RunConfig) -> None:
         """Build the task of the run (unless an evaluator was given)."""
@@ -90,6 +109,12 @@ class SimNode(EvaluatorNode):
         assert config is not None
         while self._queue:
             cand = self._current = self._queue.popleft()
+            ahead = self._ahead.pop((cand.candidate_id, cand.theta), None)
+            if ahead is not None:
+                self._current = None
+                self.counters["episodes_ahead_used"] += 1
+                self._succeed(cand, ahead)
+                continue
             self.publish_status()  # heartbeat: the episode may take longer than a status period
             try:
                 value = self._evaluate(config, cand.candidate_id, cand.theta)
@@ -101,6 +126,28 @@ class SimNode(EvaluatorNode):
                 continue
             self._current = None
             self._succeed(cand, value)
+
+    def _on_speculative(self, msg: object) -> None:
+        config = self.config
+        if config is None:
+            return  # nothing is worth doing ahead before the run is known
+        cand = self.candidate_for(msg, self.worker_id)
+        if cand is None:
+            return
+        key = (cand.candidate_id, cand.theta)
+        if cand.candidate_id in self._thetas or key in self._ahead:
+            return
+        try:
+            value = self._evaluate(config, cand.candidate_id, cand.theta)
+        except Exception:  # the real candidate, if asked, runs it again and reports the error
+            value = math.nan
+        if not math.isfinite(value):
+            self.counters["episodes_ahead_failed"] += 1
+            return
+        self._ahead[key] = value
+        while len(self._ahead) > AHEAD_KEPT:
+            self._ahead.popitem(last=False)
+        self.counters["episodes_ahead"] += 1
 
 
 def main(argv: list[str] | None = None) -> NoReturn:

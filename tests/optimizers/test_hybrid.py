@@ -1,0 +1,261 @@
+"""The hybrid (TuRPBO exploration + kernel-metric local steps): its global mode is TuRPBO's,
+the handover and hand-back rules, the local step, determinism, speculation (deep copies),
+validated tells and "can't tell" answers."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+import torch
+from optim_helpers import drive, utility
+
+from localpbo_core.optimizers import (
+    Indifferent,
+    InvalidOutcome,
+    Outcome,
+    PreferenceOptimizer,
+    make_optimizer,
+)
+from localpbo_core.optimizers.hybrid import Hybrid, slope_confidence
+from localpbo_core.optimizers.prefsqp import negative_definite_modification
+
+
+def _judge(values: dict[int, float], first: int, second: int) -> Outcome:
+    return Outcome(first, second) if values[first] >= values[second] else Outcome(second, first)
+
+
+def _drive_by_theta(opt: PreferenceOptimizer) -> list[np.ndarray]:
+    """Like ``drive``, judging every candidate (also those asked before) by its theta."""
+    while not opt.done:
+        ask = opt.ask()
+        cands = opt.history.candidates
+        opt.tell(
+            [
+                Outcome(d.first, d.second)
+                if utility(cands[d.first].theta) >= utility(cands[d.second].theta)
+                else Outcome(d.second, d.first)
+                for d in ask.duels
+            ]
+        )
+    return [c.theta for c in opt.history.candidates]
+
+
+def _older_wins(opt: PreferenceOptimizer) -> None:
+    """Every newer candidate loses its duel."""
+    while not opt.done:
+        ask = opt.ask()
+        opt.tell([Outcome(min(d.first, d.second), max(d.first, d.second)) for d in ask.duels])
+
+
+def test_slope_confidence() -> None:
+    g = np.array([1.0, 0.0])
+    sigma = np.diag([0.25, 4.0])
+    assert slope_confidence(g, g, sigma) == pytest.approx(2.0)  # 1 / sqrt(0.25)
+    assert slope_confidence(g, np.array([0.0, 1.0]), sigma) == 0.0  # no ascent along u
+    assert slope_confidence(g, -g, sigma) == 0.0
+    assert slope_confidence(g, g, np.zeros((2, 2))) == float("inf")
+    assert slope_confidence(g, np.zeros(2), sigma) == 0.0
+
+
+def test_without_handover_it_is_turpbo() -> None:
+    hybrid = make_optimizer("hybrid", 3, seed=5, budget=24, confidence=1e300)
+    turpbo = make_optimizer("turpbo", 3, seed=5, budget=24)
+    a, b = drive(hybrid), drive(turpbo)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert set(hybrid.modes) == {"global"}
+
+
+def test_until_the_first_handover_it_asks_turpbos_candidates() -> None:
+    hybrid = make_optimizer("hybrid", 4, seed=2, budget=42, confidence=0.5)
+    a = drive(hybrid)
+    first_local = hybrid.modes.index("local")  # the threshold is reached on this seed
+    assert first_local > 5
+    turpbo = make_optimizer("turpbo", 4, seed=2, budget=42)
+    b = drive(turpbo)
+    n = 2 + first_local  # the initial pair, then one candidate per ask (q = 1)
+    assert all(np.array_equal(x, y) for x, y in zip(a[:n], b[:n], strict=True))
+    assert not np.array_equal(a[n], b[n])
+
+
+def test_local_step_is_the_kernel_metric_gradient_step() -> None:
+    opt = make_optimizer("hybrid", 3, seed=1, budget=32, confidence=0.0, stall_duels=100)
+    assert isinstance(opt, Hybrid)
+    values: dict[int, float] = {}
+    checked = 0
+    while not opt.done:
+        before = len(opt.modes)
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        if len(opt.modes) > before and opt.modes[-1] == "local":
+            center = opt.center
+            assert center is not None and len(ask.candidates) == 1
+            sur = opt.surrogate
+            assert sur is not None
+            x = torch.tensor(center.theta, dtype=torch.float64)
+            g = sur.mean_gradient(x).detach().numpy()
+            ls = sur.lengthscale.detach().numpy()
+            eta = 0.5 * 0.5**opt._losses
+            expected = np.clip(center.theta + eta * g / np.sqrt(np.sum(g**2 / ls**2)), 0, 1)
+            np.testing.assert_allclose(ask.candidates[0].theta, expected, atol=1e-12)
+            assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
+            checked += 1
+        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    assert checked >= 10
+
+
+def test_newton_direction_option() -> None:
+    opt = make_optimizer(
+        "hybrid", 3, seed=1, budget=24, confidence=0.0, local_direction="newton", stall_duels=100
+    )
+    assert isinstance(opt, Hybrid)
+    values: dict[int, float] = {}
+    checked = 0
+    while not opt.done:
+        before = len(opt.modes)
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        if len(opt.modes) > before and opt.modes[-1] == "local":
+            center = opt.center
+            sur = opt.surrogate
+            assert center is not None and sur is not None
+            x = torch.tensor(center.theta, dtype=torch.float64)
+            g = sur.mean_gradient(x).detach().numpy()
+            H = sur.mean_hessian(x).detach().numpy()
+            u = -np.linalg.solve(negative_definite_modification(H), g)
+            step = ask.candidates[0].theta - center.theta
+            inside = np.all((ask.candidates[0].theta > 0) & (ask.candidates[0].theta < 1))
+            if inside:  # not projected: parallel to the Newton direction
+                cos = step @ u / (np.linalg.norm(step) * np.linalg.norm(u))
+                assert cos == pytest.approx(1.0, abs=1e-9)
+                checked += 1
+        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    assert checked >= 3
+
+
+@pytest.mark.parametrize(("stall", "cooldown"), [(3, 2), (2, 4)])
+def test_hand_back_after_stall_duels_losses_then_cooldown(stall: int, cooldown: int) -> None:
+    # confidence 0: every check hands over; every new candidate loses. d = 2: tau_fail = 4,
+    # the region shrinks every 4 failures and restarts after 28 (budget 26: no restart)
+    opt = make_optimizer(
+        "hybrid", 2, seed=0, budget=26, confidence=0.0, stall_duels=stall, cooldown=cooldown
+    )
+    assert isinstance(opt, Hybrid)
+    _older_wins(opt)
+    assert opt.tr.restarts == 0
+    pattern = (["local"] * stall + ["global"] * cooldown) * 10
+    assert opt.modes == pattern[: len(opt.modes)]
+    assert len(opt.modes) == 24
+
+
+def test_a_win_resets_the_step_and_keeps_local_mode() -> None:
+    opt = make_optimizer("hybrid", 2, seed=0, budget=40, confidence=0.0, stall_duels=3)
+    assert isinstance(opt, Hybrid)
+    drive(opt)  # noise-free on a smooth problem: local steps win
+    runs = "".join("L" if m == "local" else "g" for m in opt.modes)
+    assert "LLLL" in runs  # more than stall_duels local steps in a row: wins reset the count
+
+
+def test_determinism_and_seed_dependence() -> None:
+    runs = [drive(make_optimizer("hybrid", 3, seed=s, budget=30)) for s in (4, 4, 5)]
+    assert all(np.array_equal(a, b) for a, b in zip(runs[0], runs[1], strict=True))
+    assert not all(np.array_equal(a, b) for a, b in zip(runs[0], runs[2], strict=True))
+
+
+def test_improves_on_smooth_problem_under_noise() -> None:
+    rng = np.random.default_rng(0)
+    gaps, used_local = [], 0
+    for seed in range(3):
+        opt = make_optimizer("hybrid", 6, seed=seed, budget=62)
+        values: dict[int, float] = {}
+        while not opt.done:
+            ask = opt.ask()
+            for c in ask.candidates:
+                values[c.id] = utility(c.theta)
+            outs = []
+            for d in ask.duels:  # noise of 10 % of the range of the utility on the cube
+                a = values[d.first] + 0.1 * 2.94 * rng.standard_normal()
+                b = values[d.second] + 0.1 * 2.94 * rng.standard_normal()
+                outs.append(Outcome(d.first, d.second) if a >= b else Outcome(d.second, d.first))
+            opt.tell(outs)
+        vals = np.array(list(values.values()))
+        gaps.append(1.0 - vals.max() / vals[:2].max())
+        used_local += "local" in opt.modes
+    assert np.mean(gaps) >= 0.5, gaps
+    assert used_local >= 1
+
+
+def test_deep_copy_mid_local_phase_continues_identically() -> None:
+    opt = make_optimizer("hybrid", 3, seed=3, budget=30, confidence=0.0)
+    values: dict[int, float] = {}
+    while not (isinstance(opt, Hybrid) and opt.mode == "local" and opt.evaluations_used > 8):
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    twin = copy.deepcopy(opt)
+    a, b = _drive_by_theta(opt), _drive_by_theta(twin)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+def test_a_refused_tell_leaves_a_local_step_untouched() -> None:
+    def run(bad: bool) -> list[np.ndarray]:
+        opt = make_optimizer("hybrid", 3, seed=3, budget=24, confidence=0.0)
+        values: dict[int, float] = {}
+        while not opt.done:
+            ask = opt.ask()
+            for c in ask.candidates:
+                values[c.id] = utility(c.theta)
+            if bad:
+                for wrong in (Outcome(0, 0), Outcome(ask.duels[0].first, 10_000), "x"):
+                    with pytest.raises(InvalidOutcome):
+                        opt.tell([wrong])  # type: ignore[list-item]
+            opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+        return [c.theta for c in opt.history.candidates]
+
+    a, b = run(False), run(True)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+def test_cant_tell_answers_are_no_win_and_are_modelled() -> None:
+    with pytest.raises(InvalidOutcome):
+        make_optimizer("hybrid", 2, seed=0, budget=20).tell([Indifferent(0, 1)])
+    opt = make_optimizer(
+        "hybrid", 2, seed=0, budget=30, confidence=0.0, stall_duels=2, tie_threshold=0.5
+    )
+    assert isinstance(opt, Hybrid)
+    values: dict[int, float] = {}
+    local_ties = 0
+    while not opt.done:
+        before = len(opt.modes)
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        if len(opt.modes) > before and opt.modes[-1] == "local":
+            # a local step answered "can't tell": no win, the center stays
+            center = opt.center
+            opt.tell([Indifferent(d.first, d.second) for d in ask.duels])
+            assert opt.center == center
+            local_ties += 1
+        else:
+            opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    # two "can't tell" local steps in a row hand back: local runs are at most 2 long
+    runs = "".join("L" if m == "local" else "g" for m in opt.modes)
+    assert local_ties >= 4 and "LLL" not in runs and "LL" in runs
+    assert len(opt.ties()) == local_ties
+
+
+def test_validation_names_the_field() -> None:
+    for kw, field in (
+        ({"confidence": -1.0}, "confidence"),
+        ({"local_direction": "steepest"}, "local_direction"),
+        ({"step_size": 0.0}, "step_size"),
+        ({"stall_duels": 0}, "stall_duels"),
+        ({"cooldown": -1}, "cooldown"),
+        ({"acquisition": "ucb"}, "acquisition"),
+    ):
+        with pytest.raises(ValueError, match=field):
+            make_optimizer("hybrid", 3, **kw)
