@@ -68,6 +68,7 @@ ALGORITHM_MODULES: dict[str, tuple[str, ...]] = {
     "hbei": ("hbei.py", "acquisition.py"),
     "glisp": ("glisp.py",),
     "sobol": ("sobol.py",),
+    "hybrid": ("hybrid.py", "turpbo.py", "trust_region.py", "acquisition.py", "prefsqp.py"),
 }
 """Each algorithm's own modules under ``localpbo_core/optimizers``."""
 
