@@ -88,3 +88,16 @@ def test_a_refused_space_file_exits_2_naming_file_and_field(tmp_path, capsys) ->
         assert err.startswith("localpbo run: --space: " + says.format(path)), err
         assert len(err) < 400
     assert not out.exists()
+
+
+def test_an_unknown_bridge_parameter_exits_2_with_the_near_name(tmp_path, capsys) -> None:
+    from pathlib import Path
+
+    space = Path(__file__).resolve().parents[2] / "ros_ws/src/localpbo_examples/config"
+    out = tmp_path / "out"
+    argv = ["run", "--space", str(space / "pid_space.yaml"), "--example-controller"]
+    argv += ["--bridge", '{"trial_duraton_s": 2}', "--out", str(out), "--no-progress"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "unknown parameter 'trial_duraton_s' (did you mean 'trial_duration_s'?)" in err
+    assert not out.exists() or list(out.iterdir()) == []  # no empty bag left behind

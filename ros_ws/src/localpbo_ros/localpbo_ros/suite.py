@@ -149,7 +149,9 @@ def run_suite(
             nodes.append(RecorderNode(context=ctx, writer=writer))
         nodes.extend(factory(ctx) for factory in controllers)
         if bridge is not None:
+            refused = True  # a refused bridge parameter (e.g. an unknown name): no bag
             evaluator_node: Any = ParamBridgeNode(context=ctx, overrides=bridge)
+            refused = False
         else:
             evaluator_node = SimNode(context=ctx, evaluator=evaluator)
         nodes.append(evaluator_node)
