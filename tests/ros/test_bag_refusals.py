@@ -18,18 +18,20 @@ from localpbo_ros.replay import resumable, verify
 
 from localpbo_msgs_py import RunConfig
 from localpbo_msgs_py.bag import BagWriter, read_messages, summarize
-from localpbo_msgs_py.topics import ALL_TOPICS, RUN_CONFIG
+from localpbo_msgs_py.topics import ALL_TOPICS, RUN_CONFIG, STATUS
 
 BAG = Path(__file__).resolve().parents[2] / "bags" / "swimmer_sobol_s0.mcap"
 
 
-def rewrite(src: Path, dst: Path, **edit: Any) -> Path:
+def rewrite(src: Path, dst: Path, drop: tuple[str, ...] = (), **edit: Any) -> Path:
     """``src`` copied message by message into ``dst`` with its run config's fields edited
     (what a user editing a bag's config, or pairing one run's config with another run's
     messages, would produce); the file itself is a whole, valid bag."""
     with BagWriter(dst) as writer:
         writer.add_suite_topics(ALL_TOPICS)
         for rec in read_messages(src):
+            if rec.topic in drop:
+                continue
             msg = rec.message
             if rec.topic == RUN_CONFIG.name:
                 config = RunConfig.decode(msg)
@@ -168,3 +170,11 @@ def test_resume_of_a_truncated_bag_says_what_it_read(tmp_path: Path) -> None:
     report = verify(resumed)
     assert report.ok and report.candidates_checked == 40, report.format()
     assert load_run(resumed).finished == "yes (40 of 40 evaluations)"
+
+
+def test_run_finished_is_unknown_without_the_optimizer_status(tmp_path: Path, capsys: Any) -> None:
+    bag = rewrite(BAG, tmp_path / "no_status.mcap", drop=(STATUS.name,))
+    assert cli_main(["bag-info", str(bag)]) == 0
+    out = capsys.readouterr().out
+    assert "file complete: yes (closed cleanly)" in out
+    assert "run finished: unknown: no optimizer status recorded (40 of 40 evaluations)" in out

@@ -111,13 +111,15 @@ class RecordedRun:
     @property
     def finished(self) -> str:
         """Whether the run finished (its optimizer reported ``done``), e.g. ``yes (40 of 40
-        evaluations)`` or ``no: stopped at 346 of 1000 evaluations (optimizer running)``;
-        independent of whether the file is complete."""
+        evaluations)`` or ``no: stopped at 346 of 1000 evaluations (optimizer running)``
+        (``unknown`` without the optimizer's status); independent of whether the file is
+        complete."""
         used = f"{len(self.candidates)} of {self.config.budget} evaluations"
         if self.optimizer_state == "done":
             return f"yes ({used})"
-        state = self.optimizer_state or "state not recorded"
-        return f"no: stopped at {used} (optimizer {state})"
+        if not self.optimizer_state:
+            return f"unknown: no optimizer status recorded ({used})"
+        return f"no: stopped at {used} (optimizer {self.optimizer_state})"
 
 
 def same_run_config(a: RunConfig, b: RunConfig) -> bool:
