@@ -156,3 +156,19 @@ def test_use_sim_time_set_while_running_keeps_the_heartbeat(ros) -> None:
     after = status_stamps(ros, "sim_node", 3.5)
     assert len(after) >= 3, after  # the heartbeat goes on
     assert after[-1] == 0  # honoured: the ROS clock is sim time, and no /clock was published
+
+
+def test_optimizer_refuses_a_hostile_space_file_naming_it(ros, tmp_path) -> None:
+    """``optimizer_node -p space:=FILE``: the parameter, the file and the field."""
+    binary = tmp_path / "gains.bin"
+    binary.write_bytes(bytes(range(256)) * 8)
+    big = tmp_path / "big.yaml"
+    big.write_text("parameters: []\n" + "#" * (2 << 20))
+    cases = {
+        binary: f"invalid parameter 'space': space: file {binary}: is not a YAML mapping",
+        big: f"invalid parameter 'space': space: file {big}: is {big.stat().st_size} bytes",
+    }
+    for path, says in cases.items():
+        with pytest.raises(ParameterError) as info:
+            OptimizerNode(context=ros.ctx, overrides={"algorithm": "sobol", "space": str(path)})
+        assert info.value.name == "space" and str(info.value).startswith(says), info.value
