@@ -582,3 +582,22 @@ def test_resume_keeps_the_person_and_the_open_tab(browser: Any, tmp_path: Path) 
     resumed = load_run(tmp_path / "kept-resumed.mcap")
     assert sorted(o.duel_id for o in resumed.outcomes) == list(range(5))
     assert verify(tmp_path / "kept-resumed.mcap").ok
+
+
+def test_short_episodes_are_slowed_down_to_be_seen(browser: Any, tmp_path: Path) -> None:
+    """Hopper in the paper's box (--warm-start none): random policies fall within a fraction
+    of a second; the page plays such a duel slowed to last >= 1.5 s on screen and says so."""
+    run = Run(tmp_path, "short", task="hopper", budget=3, task_options="{}", speculate=False)
+    browser.get(run.url)
+    duel_shown(browser)
+    until(lambda: browser.execute_script("return !!(replay.a && replay.b)"), 30)
+    browser.execute_script("setSpeed(1)")
+    total, rate = browser.execute_script("return [duration(), effectiveRate()]")
+    assert total < 0.2  # seed 4: episodes of 0.08 s and 0.14 s
+    assert abs(total / rate - 1.5) < 1e-6  # slowed to 1.5 s on screen
+    assert "slowed to" in until(lambda: browser.find_element("id", "rate").text, 5)
+    for _ in range(2):
+        duel = duel_shown(browser)
+        browser.find_element("id", "answer-b").click()
+        reply_text(browser, f"Recorded: duel {duel}")
+    assert run.finish().state == "done"

@@ -1,7 +1,8 @@
 """Screenshot of the judge's page during a Hopper duel (README's ``docs/judge.png``).
 
 ``python -m localpbo_ros.benchmarks.judge_screenshot [--out docs/judge.png]`` runs README's
-command for a person, ``localpbo run --task hopper --oracle human --budget 16`` (plus
+command for a person, ``localpbo run --task hopper --oracle human --budget 16 --run-id
+mine`` (plus
 ``--out`` a temporary folder and ``--no-progress``), as a separate process, exactly as a user
 would; opens the printed URL in headless chromium (Debian's ``chromium`` and
 ``chromium-driver``); lets the first duel's two episodes play for ``--at`` seconds of screen
@@ -21,7 +22,17 @@ import time
 from pathlib import Path
 from typing import Any
 
-README_COMMAND = ["run", "--task", "hopper", "--oracle", "human", "--budget", "16"]
+README_COMMAND = [
+    "run",
+    "--task",
+    "hopper",
+    "--oracle",
+    "human",
+    "--budget",
+    "16",
+    "--run-id",
+    "mine",
+]
 """README's command for a person judging (after ``localpbo``)."""
 
 

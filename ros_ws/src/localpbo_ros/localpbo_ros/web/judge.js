@@ -326,7 +326,12 @@ function startReview(h) {
   $("duel").hidden = false;
   dim(false, "");
   renderReview();
-  for (const side of ["a", "b"]) text($("cid-" + side), `candidate ${review[side]}`);
+  for (const side of ["a", "b"]) {
+    text($("cid-" + side), `candidate ${review[side]}`);
+    text($("state-" + side), "");
+    $("state-" + side).className = "badge";
+    $("side-" + side).classList.remove("evaluating");
+  }
   loadPair(h.a, h.b, currentKey());
 }
 
@@ -532,7 +537,7 @@ function draw(side, t) {
   let cu = 0, cv = 0;
   for (const s of segs) { cu += (s[0] + s[2]) / 2; cv += (s[1] + s[3]) / 2; }
   cu /= segs.length; cv /= segs.length;
-  const ppm = topView ? H / 3 : H / 2.1;
+  const ppm = topView ? H / 3 : H / 2.6;
   const ox = W / 2 - cu * ppm;
   const oy = topView ? H / 2 + cv * ppm : H - 24;
   const X = (u) => ox + u * ppm, Y = (v) => oy - v * ppm;
