@@ -122,6 +122,15 @@ class RunFilter:
         """None for a message of the run on ``topic``; else why it is foreign."""
         if topic == RUN_CONFIG.name:
             return self._config(msg)
+        if topic == STATUS.name:
+            status = Status.decode(msg)
+            if isinstance(status, DecodeError):
+                return status.reason.value
+            if status.run_id == NO_RUN:
+                return None
+            if self.config is None:
+                return BEFORE_RUN
+            return None if status.run_id == self.config.run_id else DecodeReason.WRONG_RUN.value
         config = self.config
         if config is None:
             return BEFORE_RUN
@@ -148,11 +157,6 @@ class RunFilter:
                 return duel.reason.value
             ok = self.ids.duel(duel.duel_id, duel.first_id, duel.second_id)
             return None if ok else OUT_OF_RANGE
-        if topic == STATUS.name:
-            status = Status.decode(msg)
-            if isinstance(status, DecodeError):
-                return status.reason.value
-            return None if status.run_id in (run, NO_RUN) else DecodeReason.WRONG_RUN.value
         return DecodeReason.WRONG_TYPE.value
 
     def _config(self, msg: object) -> str | None:

@@ -1,11 +1,12 @@
 """``recorder_node``: records every suite topic, as serialized CDR, into one MCAP bag.
 
-Subscribes raw (no deserialization) to each topic of ``localpbo_msgs_py.topics.ALL_TOPICS``
-(state topics transient-local, so the latched run config and incumbent are recorded even when
-published before the recorder joined) and appends the bytes with
-``BagWriter.write_serialized``; channels carry the publishers' ``offered_qos_profiles`` (the
-form rosbag2 writes). The writer closes a chunk and flushes every ``flush_interval_s``, so a
-killed process loses at most that much.
+Subscribes raw to each topic of ``localpbo_msgs_py.topics.ALL_TOPICS`` (state topics
+transient-local, so the latched run config and incumbent are recorded even when published
+before the recorder joined; event topics KEEP_ALL, see :func:`recording_qos`) and appends the
+received bytes with ``BagWriter.write_serialized`` (they are deserialized only to triage
+them); channels carry the publishers' ``offered_qos_profiles`` (the form rosbag2 writes). The
+writer closes a chunk and flushes every ``flush_interval_s``, so a killed process loses at
+most that much; a stopped one first takes its backlog (:meth:`RecorderNode.drain`).
 
 The run's own messages are never crowded out. Each message is triaged
 (:class:`localpbo_ros.admission.RunFilter`): a message of the recorded run (parameter
@@ -84,15 +85,22 @@ PARAMS = [
 ]
 
 RECORD_DEPTH = 1000
-"""History depth of the recorder's subscriptions (bursts are not lost while it writes)."""
+"""Messages held while no run config is known."""
+DRAIN_S = 2.0
+"""On close, seconds the recorder may spend taking the messages still waiting in its
+subscriptions (a recorder behind a flood has a backlog)."""
 
 
 def recording_qos(spec: TopicSpec) -> QoSProfile:
-    """Reliable, deep history; transient-local for latched topics."""
+    """Reliable; transient-local (its own depth) for latched topics, history KEEP_ALL for
+    event topics: a KEEP_LAST reader that falls behind a flood overwrites its oldest samples,
+    the run's among them, while a full KEEP_ALL reader refuses new samples and the reliable
+    writers send them again later (each waits in its own writer's history; a flooding
+    writer's KEEP_LAST history loses its own)."""
     durable = spec.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=RECORD_DEPTH if not durable else max(spec.qos.depth, 1),
+        history=HistoryPolicy.KEEP_LAST if durable else HistoryPolicy.KEEP_ALL,
+        depth=max(spec.qos.depth, 1),
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else EVENT_QOS.durability,
     )
@@ -242,8 +250,29 @@ class RecorderNode(SuiteNode):
             if spec.name in wanted
         )
 
+    def drain(self, seconds: float = DRAIN_S) -> int:
+        """Take and record the messages waiting in the subscriptions, for at most ``seconds``;
+        returns how many were taken."""
+        end = time.monotonic() + seconds
+        taken = 0
+        for spec, sub in zip(self.topics, self._subs, strict=True):
+            record = self._callback(spec)
+            while time.monotonic() < end:
+                try:
+                    with sub.handle:
+                        got = sub.handle.take_message(sub.msg_type, sub.raw)
+                except Exception:  # the subscription is already destroyed
+                    break
+                if got is None:
+                    break
+                record(got[0])
+                taken += 1
+        return taken
+
     def close(self) -> None:
-        """Finish the bag: held messages, the accounting record, summary and footer."""
+        """Finish the bag: the backlog (:meth:`drain`), held messages, the accounting record,
+        summary and footer."""
+        self.drain()
         self.writer.close()
 
 
