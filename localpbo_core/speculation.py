@@ -7,7 +7,9 @@ answers are possible — "first better", "second better", and "can't tell" when 
 ties — so the next decision can be computed for each of them *while the person watches*:
 
 * each possible answer gets a fork of the session (:meth:`Session.fork`: the optimizer
-  deep-copied, the problem shared), made in the caller's thread;
+  deep-copied, the problem shared): one copy is made in the caller's thread, the branches
+  fork it in the background (the caller's thread, which in ``localpbo run`` also carries
+  the next duel to the page, spends one copy, not one per answer);
 * the answers are ordered by how likely the model finds them (:func:`predicted`: the
   optimizer's last fitted surrogate gives ``P(first better)``, ``P(second better)`` and
   ``P(can't tell)`` of the open duel under the ordinal likelihood of
@@ -136,8 +138,9 @@ class Speculation:
         self.answers: tuple[Answer, ...] = answers
         self.probabilities: tuple[float, ...] | None = probs
         self._on_branch = on_branch
-        self._forks = [session.fork() for _ in self.answers]
-        self._now: Session | None = session.fork() if recommend else None
+        # one copy made here (the caller's thread); the branches fork it in the background
+        self._base: Session | None = session.fork()
+        self._recommend = recommend
         self.recommendation: Candidate | None = None
         """The current recommendation once computed (``recommend=True``), else None."""
         self._branches: dict[Answer, Branch] = {}
@@ -155,13 +158,15 @@ class Speculation:
 
     def run(self) -> None:
         """Compute every branch in order until done or cancelled."""
+        base = self._base
+        assert base is not None, "a speculation runs once"
         try:
-            for answer, fork in zip(self.answers, self._forks, strict=True):
+            for answer in self.answers:
                 with self._cond:
                     if self._cancelled:
                         return
                     self._computing = answer
-                branch = _decide(fork, answer)
+                branch = _decide(base.fork(), answer)
                 with self._cond:
                     if branch is not None:
                         self._branches[answer] = branch
@@ -170,14 +175,13 @@ class Speculation:
                     cancelled = self._cancelled
                 if branch is not None and self._on_branch is not None and not cancelled:
                     self._on_branch(branch)
-            now, self._now = self._now, None
-            if now is not None and not self._cancelled:
-                self.recommendation = now.recommendation()
+            if self._recommend and not self._cancelled:
+                self.recommendation = base.recommendation()
         finally:
             with self._cond:
                 self._finished = True
                 self._computing = None
-                self._forks = []
+                self._base = None
                 self._cond.notify_all()
 
     @property
