@@ -8,7 +8,7 @@
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(window.location.search);
 const POLL_MS = Math.max(200, Number(params.get("refresh")) || 1000); // fallback only
-const SETTLE_MS = 400; // an answer this soon after the previous one is a double press: refused
+const SETTLE_MS = 250; // an answer this soon after the previous one is a double press: refused
 const MIN_SCREEN_S = 1.5; // a shorter episode is slowed down to last this long on screen
 const LOOP_PAUSE_S = 0.8; // the last frame stays this long before the loop starts again
 const SPEEDS = [0.25, 0.5, 1, 2, 4];
