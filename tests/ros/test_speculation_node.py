@@ -277,3 +277,32 @@ def test_an_answer_to_nothing_prepared_is_decided_as_usual() -> None:
     driver.cancel_speculation()
     assert driver.offer(DuelOutcome.decisive(req, req.first_id)).accepted
     assert driver.speculated == 0 and len(driver.ask().candidates) == 1
+
+
+def test_judge_replays_the_episodes_of_speculative_candidates_ahead(ros, tmp_path: Path) -> None:
+    from localpbo_ros.judge_node import JudgeNode
+    from localpbo_ros.rollouts import RolloutCache
+
+    task = {"episode_steps": 40, "value_range": 50.0}
+    config = run_config(
+        run_id="ahead", algorithm="sobol", task="swimmer", seed=3, budget=8, task_options=task
+    )
+    judge = ros.add(JudgeNode(context=ros.ctx, overrides={"state_dir": str(tmp_path)}))
+    ros.publish(RUN_CONFIG, config.encode())
+    assert ros.spin_until(lambda: judge._rollouts is not None, 10)
+    rollouts = judge._rollouts
+    assert rollouts is not None
+    box = make_problem("swimmer", **task)
+    theta = {k: tuple(float(v) for v in box.to_native(np.full(box.dim, 0.2 * k))) for k in (1, 2)}
+    # two branches propose candidate 4 with different θ: both replays are kept
+    for th in (theta[1], theta[2]):
+        ros.publish(SPECULATIVE_CANDIDATE, CandidateMsg("ahead", 4, th).encode())
+    ros.publish(SPECULATIVE_CANDIDATE, CandidateMsg("ahead", 999, theta[1]).encode())
+    assert ros.spin_until(lambda: rollouts.episodes == 2, 20)
+    assert judge.counters["dropped_id_out_of_range"] == 1
+    ros.publish(CANDIDATE, CandidateMsg("ahead", 4, theta[2]).encode())
+    assert ros.spin_until(lambda: 4 in judge.core.candidates, 10)
+    shown = judge.rollout(4)
+    assert rollouts.episodes == 2  # the page's request is served from the replay ahead
+    fresh = RolloutCache(box, config.seed, stride=judge.settings["frame_stride"], max_entries=0)
+    assert shown == fresh.get(4, theta[2])

@@ -1,7 +1,9 @@
 """``judge_node``: a person answers the duels in a web browser, instead of ``oracle_node``.
 
 Subscribes ``/localpbo/run_config``, ``/localpbo/candidate``, ``/localpbo/episode_result``,
-``/localpbo/duel_request``, ``/localpbo/incumbent`` and ``/localpbo/status``; publishes
+``/localpbo/duel_request``, ``/localpbo/incumbent``, ``/localpbo/status`` and
+``/localpbo/speculative_candidate`` (a speculating optimizer's possible next candidates:
+their episodes are replayed ahead, so the next duel's replays are ready when it is); publishes
 ``/localpbo/duel_outcome`` (with ``answer_seconds``) and ``/localpbo/status``.
 
 It serves a page (:mod:`localpbo_ros.judge_web`) at ``http://<host>:<port>/<secret>/``: the
@@ -25,9 +27,12 @@ every second). ``name`` is recorded with every answer whose page names nobody.
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import os
+import queue
 import secrets
+import threading
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -48,6 +53,7 @@ from localpbo_msgs_py.topics import (
     DUEL_REQUEST,
     EPISODE_RESULT,
     INCUMBENT,
+    SPECULATIVE_CANDIDATE,
     STATUS,
 )
 from localpbo_ros.driver import problem_of
@@ -58,6 +64,8 @@ from localpbo_ros.params import Param, ParameterError
 from localpbo_ros.rollouts import RolloutCache
 
 DEFAULT_STATE_DIR = "~/.local/state/localpbo/judge"
+AHEAD_QUEUE = 8
+"""Speculative candidates waiting for their episode to be replayed ahead, at most."""
 
 PARAMS = [
     Param("host", "127.0.0.1", "Address the page binds to (loopback unless allow_remote)."),
@@ -160,6 +168,13 @@ class JudgeNode(FollowerNode):
         self.subscribe(DUEL_REQUEST, self._on_request)
         self.subscribe(INCUMBENT, self._on_incumbent)
         self.subscribe(STATUS, self._on_status)
+        # episodes a speculating optimizer may ask next: replayed ahead in one worker thread
+        self._ahead: queue.Queue[tuple[int, tuple[float, ...]] | None] = queue.Queue(AHEAD_QUEUE)
+        self._ahead_thread = threading.Thread(
+            target=self._replay_ahead, name="judge-rollouts-ahead", daemon=True
+        )
+        self._ahead_thread.start()
+        self.subscribe(SPECULATIVE_CANDIDATE, self._on_speculative)
 
     # ------------------------------------------------------------------ plumbing
     def drop(self, reason: str, detail: str) -> None:
@@ -180,6 +195,28 @@ class JudgeNode(FollowerNode):
     def close(self) -> None:
         """Stop serving the page."""
         self.web.close()
+        with contextlib.suppress(queue.Full):
+            self._ahead.put_nowait(None)
+
+    def _on_speculative(self, msg: object) -> None:
+        """A candidate a prepared branch would propose: replay its episode ahead (dropped,
+        counted, when ``AHEAD_QUEUE`` are already waiting)."""
+        if self.config is None or self._rollouts is None:
+            return
+        cand = self.candidate(msg)
+        if cand is None:
+            return
+        try:
+            self._ahead.put_nowait((cand.candidate_id, cand.theta))
+        except queue.Full:
+            self.counters["rollouts_ahead_dropped"] += 1
+
+    def _replay_ahead(self) -> None:
+        while (item := self._ahead.get()) is not None:
+            rollouts = self._rollouts
+            if rollouts is not None:
+                with contextlib.suppress(Exception):  # the page's request reports errors
+                    rollouts.get(*item)
 
     def episode_return(self, candidate_id: int) -> float | None:
         """The episode return received for a candidate (for ``localpbo run``'s summary)."""

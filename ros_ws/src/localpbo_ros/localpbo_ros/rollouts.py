@@ -41,7 +41,8 @@ class RolloutCache:
         self.stride = stride
         self.max_entries = max_entries
         self._lock = threading.Lock()  # one MuJoCo data: one episode at a time
-        self._cache: OrderedDict[int, tuple[tuple[float, ...], dict[str, Any]]] = OrderedDict()
+        # by (id, θ): the branches of a speculation propose different θ under one id
+        self._cache: OrderedDict[tuple[int, tuple[float, ...]], dict[str, Any]] = OrderedDict()
         self.episodes = 0
 
     def get(self, candidate_id: int, native: tuple[float, ...]) -> dict[str, Any]:
@@ -53,10 +54,11 @@ class RolloutCache:
         ``[u1, v1, u2, v2]``, metres rounded to 0.1 mm).
         """
         with self._lock:
-            hit = self._cache.get(candidate_id)
-            if hit is not None and hit[0] == native:
-                self._cache.move_to_end(candidate_id)
-                return hit[1]
+            key = (candidate_id, tuple(native))
+            hit = self._cache.get(key)
+            if hit is not None:
+                self._cache.move_to_end(key)
+                return hit
             rec = self.task.record_native(
                 np.asarray(native, dtype=np.float64),
                 episode_seed(self.run_seed, candidate_id),
@@ -76,7 +78,7 @@ class RolloutCache:
                 "frames": np.round(rec.frames, 4).tolist(),
             }
             if self.max_entries > 0:
-                self._cache[candidate_id] = (native, out)
+                self._cache[key] = out
                 while len(self._cache) > self.max_entries:
                     self._cache.popitem(last=False)
             return out
