@@ -4,10 +4,12 @@ log lines, node state and bag size bounded, no episode for a forged candidate.""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from localpbo_ros.admission import IdRange, id_range
 from localpbo_ros.evaluator import EvaluatorNode
 from localpbo_ros.oracle_node import OracleNode
 from localpbo_ros.recorder_node import PARAMS as RECORDER_PARAMS
@@ -16,6 +18,7 @@ from localpbo_ros.sim_node import SimNode
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from localpbo_core.validation import SettingError
 from localpbo_msgs_py import CandidateMsg, DuelRequest, EpisodeResult, Incumbent, RunConfig, Status
 from localpbo_msgs_py._validate import MAX_ID, MAX_KEYVALUES, MAX_TEXT, MAX_THETA_LEN
 from localpbo_msgs_py.bag import read_messages, summarize
@@ -177,6 +180,7 @@ def test_recorder_drops_oversized_and_caps_the_bag(ros: Any, tmp_path: Any, capf
     capfd.readouterr()
     flood(ros, recorder, sends, recorder_handled)
     c = recorder.counters
+    assert recorder.max_foreign == cap // 2  # foreign traffic gets at most half of a cap
     assert c["dropped_oversized"] == 40
     assert c["recorded"] - 1 + c["dropped_bag_full"] == 80
     assert c["dropped_bag_full"] > 0 and recorder.bag_full
@@ -419,3 +423,21 @@ def test_evaluator_queue_is_bounded_and_repeats_are_counted(ros: Any) -> None:
     decoded = EpisodeResult.decode(results[0])
     assert isinstance(decoded, EpisodeResult) and decoded.error == "target refused"
     assert not node._queue
+
+
+def test_id_range_follows_the_budget_or_the_config() -> None:
+    config = cheap_config(budget=8)
+    assert id_range(config) == IdRange(16, 32)
+    stated = replace(config, options={**config.options, "ids": {"candidates": 20}})
+    assert id_range(stated) == IdRange(20, 40)
+    both = replace(config, options={**config.options, "ids": {"candidates": 20, "duels": 5}})
+    assert id_range(both) == IdRange(20, 5)
+    for bad, field in (
+        ({"candidates": 0}, "options.ids.candidates"),
+        ({"duels": "9"}, "options.ids.duels"),
+        ({"candidate": 3}, "options.ids.candidate"),
+    ):
+        with pytest.raises(SettingError) as err:
+            id_range(replace(config, options={**config.options, "ids": bad}))
+        assert err.value.field == field
+    assert IdRange(16, 32).duel(31, 0, 15) and not IdRange(16, 32).duel(31, 0, 16)
