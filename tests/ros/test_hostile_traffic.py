@@ -441,3 +441,22 @@ def test_id_range_follows_the_budget_or_the_config() -> None:
             id_range(replace(config, options={**config.options, "ids": bad}))
         assert err.value.field == field
     assert IdRange(16, 32).duel(31, 0, 15) and not IdRange(16, 32).duel(31, 0, 16)
+
+
+def test_recorder_holds_a_bounded_backlog_before_the_run_config(
+    ros: Any, tmp_path: Any, monkeypatch: Any
+) -> None:
+    import localpbo_ros.recorder_node as recorder_module
+
+    monkeypatch.setattr(recorder_module, "HOLD_BYTES", 3000)
+    path = tmp_path / "early.mcap"
+    recorder = start_recorder(ros, path, [RUN_CONFIG, CANDIDATE])
+    early = [(CANDIDATE, theta_message(100, candidate=i)) for i in range(5)]  # ~900 B each
+    flood(ros, recorder, early, recorder_handled)
+    assert len(recorder._held) == 3 and recorder._held_bytes <= 3000
+    assert recorder.counters["foreign_before_run"] == 2  # beyond the bound: foreign at once
+    flood(ros, recorder, [(RUN_CONFIG, wide_config(100).encode())], recorder_handled)
+    assert recorder.counters["recorded"] == 4 and not recorder._held  # config + the 3 held
+    recorder.close()
+    kept = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
+    assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == [0, 1, 2]

@@ -14,8 +14,9 @@ The run's own messages are never crowded out. Each message is triaged
 written on its topic; foreign traffic (another run, malformed, ids out of range, a
 conflicting config) is written under ``/localpbo/foreign/<topic>`` and only up to
 ``max_foreign_bytes`` (at most half of ``max_bag_bytes``), so the run always keeps the rest of
-the cap. Messages that arrive before any run config are held (at most ``RECORD_DEPTH``) and
-triaged when it arrives; on close, the rest count as foreign (``before_run``).
+the cap. Messages that arrive before any run config are held (at most ``RECORD_DEPTH``
+messages, ``HOLD_BYTES`` bytes) and triaged when it arrives; beyond, and on close, they count
+as foreign (``before_run``).
 
 Bounded under hostile traffic: a message longer than ``max_message_bytes`` (default twice the
 largest message any decoder accepts, ``localpbo_msgs_py.limits.MAX_MESSAGE_BYTES``) is not
@@ -86,6 +87,8 @@ PARAMS = [
 
 RECORD_DEPTH = 1000
 """Messages held while no run config is known."""
+HOLD_BYTES = 16 << 20
+"""Bytes held while no run config is known."""
 DRAIN_S = 2.0
 """On close, seconds the recorder may spend taking the messages still waiting in its
 subscriptions (a recorder behind a flood has a backlog)."""
@@ -143,6 +146,7 @@ class RecorderNode(SuiteNode):
         self.bag_full = False
         self.foreign_bytes = 0
         self._held: list[tuple[TopicSpec, bytes, int]] = []
+        self._held_bytes = 0
         self.writer.before_close(self._finish)
         self._subs = [
             self.create_subscription(
@@ -172,15 +176,20 @@ class RecorderNode(SuiteNode):
                 return
             now = time.time_ns()
             reason = self._triage(spec, data)
-            if reason == BEFORE_RUN and len(self._held) < RECORD_DEPTH:
+            if (
+                reason == BEFORE_RUN
+                and len(self._held) < RECORD_DEPTH
+                and self._held_bytes + size <= HOLD_BYTES
+            ):
                 self._held.append((spec, data, now))
+                self._held_bytes += size
                 return
             self._write(spec, data, reason, now)
             config = self.filter.config
             if config is not None and self.status_run_id != config.run_id:
                 self.status_run_id = config.run_id  # its own status is the run's too
             if reason is None and spec.name == RUN_CONFIG.name and self._held:
-                held, self._held = self._held, []
+                held, self._held, self._held_bytes = self._held, [], 0
                 for h_spec, h_data, h_time in held:
                     self._write(h_spec, h_data, self._triage(h_spec, h_data), h_time)
 
@@ -229,7 +238,7 @@ class RecorderNode(SuiteNode):
 
     def _finish(self, writer: BagWriter) -> None:
         """Before the bag closes: the held messages as foreign, then the accounting record."""
-        held, self._held = self._held, []
+        held, self._held, self._held_bytes = self._held, [], 0
         for spec, data, log_time in held:
             self._write(spec, data, BEFORE_RUN, log_time)
         record = {
