@@ -22,6 +22,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
@@ -37,7 +38,11 @@ def shell_code(signum: int) -> int:
 
 
 class StopRequest(threading.Event):
-    """Set by the first SIGINT or SIGTERM; ``signum`` says which (0 until then)."""
+    """Set by the first SIGINT or SIGTERM; ``signum`` says which (0 until then).
+
+    First as Python handles them: signals that arrive while the main thread is inside one long
+    C call are handled after it in signal-number order, so SIGINT counts as first then.
+    """
 
     def __init__(self) -> None:
         super().__init__()
@@ -102,12 +107,49 @@ def guard_start(program: str, code_of: Callable[[int], int]) -> None:
     def handler(signum: int, frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
         os.write(2, f"{program}: stopped by {name} while starting\n".encode())
+        _wait_for_children(CHILD_WAIT_S)
         exit_now(code_of(signum))
 
     previous = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
     for sig in STOP_SIGNALS:
         signal.signal(sig, handler)
     _previous = previous
+
+
+CHILD_WAIT_S = 2.0
+"""Seconds a process stopped while starting waits for the helper processes its imports started
+(e.g. glfw's library check, a Python child reading from a pipe to this process): ended at
+once, this process would leave them writing into a closed pipe, with a traceback of theirs."""
+
+
+def _wait_for_children(timeout_s: float) -> None:
+    """Reap this process's children as they end, for at most ``timeout_s`` seconds; then kill
+    those left (e.g. one waiting for input this process will never write)."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:  # none left
+            return
+        if pid == 0:  # some still running
+            time.sleep(0.01)
+    for pid in _children():
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
+
+
+def _children() -> list[int]:
+    """This process's children (Linux: ``/proc/self/task/*/children``; elsewhere none)."""
+    pids: list[int] = []
+    try:
+        for task in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{task}/children") as fh:
+                pids += [int(p) for p in fh.read().split()]
+    except OSError:
+        pass
+    return pids
 
 
 def release_start_guard() -> None:
