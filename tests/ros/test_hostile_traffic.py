@@ -460,3 +460,35 @@ def test_recorder_holds_a_bounded_backlog_before_the_run_config(
     recorder.close()
     kept = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
     assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == [0, 1, 2]
+
+
+def test_forged_speculative_candidates_cost_a_bounded_number_of_episodes(ros: Any) -> None:
+    from localpbo_ros.sim_node import AHEAD_PER_ID
+
+    from localpbo_msgs_py.topics import SPECULATIVE_CANDIDATE
+
+    calls: list[int] = []
+
+    def evaluator(config: RunConfig, cid: int, theta: Any) -> float:
+        calls.append(cid)
+        return 1.0
+
+    sim = ros.add(SimNode(context=ros.ctx, evaluator=evaluator))
+    sim.warnings.clock = FrozenClock()
+    config = cheap_config()
+    ros.publish(RUN_CONFIG, config.encode())
+    assert ros.spin_until(lambda: sim.run_id == "t1", 5)
+    lo, hi = config.lower[0], config.upper[0]
+    sends = [
+        (
+            SPECULATIVE_CANDIDATE,
+            CandidateMsg("t1", cid, (lo + (hi - lo) * k / 40, *config.lower[1:])).encode(),
+        )
+        for cid in (3, 5)
+        for k in range(30)
+    ]
+    sends.append((SPECULATIVE_CANDIDATE, CandidateMsg("t1", 10**7, config.lower).encode()))
+    flood(ros, sim, sends, lambda n: dropped(n) + n.counters["episodes_ahead"])
+    assert sorted(calls) == [3] * AHEAD_PER_ID + [5] * AHEAD_PER_ID
+    assert sim.counters["dropped_ahead_limit"] == 2 * (30 - AHEAD_PER_ID)
+    assert sim.counters["dropped_id_out_of_range"] == 1

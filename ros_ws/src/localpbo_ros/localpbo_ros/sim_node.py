@@ -17,7 +17,8 @@ speculates): a candidate the next ask may propose is evaluated while the current
 judged and its return kept (at most ``AHEAD_KEPT``, by id and θ); when the real candidate
 arrives with the same id and θ, that return is published at once (``episodes_ahead_used``) —
 the number the episode would give now, since it is a function of run seed, id and θ. An
-episode ahead that fails or is never asked for leaves no trace.
+episode ahead that fails or is never asked for leaves no trace. At most ``AHEAD_PER_ID``
+episodes run ahead per id of the run's range (forged speculative candidates are bounded too).
 
 Pool worker (:mod:`localpbo_ros.pool`): the node announces its worker id
 (``<node name>.<8 hex>``) and the candidate it evaluates in its status heartbeats
@@ -32,7 +33,7 @@ state ``stopped`` on its way out, and its candidate goes to another worker at on
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from collections.abc import Callable
 from typing import Any, NoReturn
 
@@ -48,6 +49,10 @@ from localpbo_ros.evaluator import EvaluatorNode
 
 AHEAD_KEPT = 16
 """Returns of episodes run ahead kept (oldest dropped)."""
+AHEAD_PER_ID = 4
+"""Episodes run ahead per candidate id (one per possible answer: A, B, can't tell); more are
+dropped (``dropped_ahead_limit``), so forged speculative candidates cost a bounded number of
+episodes per id of the run's range."""
 
 Evaluator = Callable[[RunConfig, int, np.ndarray], float]
 """``(run config, candidate id, θ in task units as received) -> episode return``."""
@@ -72,6 +77,7 @@ class SimNode(EvaluatorNode):
         self._evaluator = evaluator
         self._problem: Any = None
         self._ahead: OrderedDict[tuple[int, tuple[float, ...]], float] = OrderedDict()
+        self._ahead_runs: Counter[int] = Counter()  # episodes run ahead per candidate id
         self.subscribe(SPECULATIVE_CANDIDATE, self._on_speculative)
         self.publish_status()  # announce the worker now, not a status period later
 
@@ -90,6 +96,7 @@ class SimNode(EvaluatorNode):
         """Forget the previous run, its episodes run ahead too."""
         super().reset()
         self._ahead.clear()
+        self._ahead_runs.clear()
 
     def adopt(self, config: RunConfig) -> None:
         """Build the task of the run (unless an evaluator was given)."""
@@ -137,6 +144,10 @@ class SimNode(EvaluatorNode):
         key = (cand.candidate_id, cand.theta)
         if cand.candidate_id in self._thetas or key in self._ahead:
             return
+        if self._ahead_runs[cand.candidate_id] >= AHEAD_PER_ID:
+            self.drop("ahead_limit", f"candidate {cand.candidate_id}: {AHEAD_PER_ID} run ahead")
+            return
+        self._ahead_runs[cand.candidate_id] += 1
         try:
             value = self._evaluate(config, cand.candidate_id, cand.theta)
         except Exception:  # the real candidate, if asked, runs it again and reports the error
