@@ -41,8 +41,6 @@ from rclpy.context import Context
 from localpbo_msgs_py import (
     DecodeError,
     DecodeReason,
-    DuelRequest,
-    EpisodeResult,
     Incumbent,
     RunConfig,
     Status,
@@ -303,10 +301,8 @@ class JudgeNode(FollowerNode):
     def _on_result(self, msg: object) -> None:
         if self.hold(self._on_result, msg):
             return
-        assert self.config is not None
-        res = EpisodeResult.decode(msg, expected_run_id=self.config.run_id)
-        if isinstance(res, DecodeError):
-            self.drop_decode(res)
+        res = self.result(msg)  # of this run, for a candidate id in its range
+        if res is None:
             return
         for outcome in self.core.on_result(res):
             self._pub.publish(outcome.encode())
@@ -314,10 +310,8 @@ class JudgeNode(FollowerNode):
     def _on_request(self, msg: object) -> None:
         if self.hold(self._on_request, msg):
             return
-        assert self.config is not None
-        req = DuelRequest.decode(msg, expected_run_id=self.config.run_id)
-        if isinstance(req, DecodeError):
-            self.drop_decode(req)
+        req = self.request(msg)  # of this run, ids in its range
+        if req is None:
             return
         stored = self.core.on_request(req)
         if stored is not None:
