@@ -492,3 +492,16 @@ def test_forged_speculative_candidates_cost_a_bounded_number_of_episodes(ros: An
     assert sorted(calls) == [3] * AHEAD_PER_ID + [5] * AHEAD_PER_ID
     assert sim.counters["dropped_ahead_limit"] == 2 * (30 - AHEAD_PER_ID)
     assert sim.counters["dropped_id_out_of_range"] == 1
+
+
+def test_a_stopped_recorder_takes_its_backlog_first(ros: Any, tmp_path: Any) -> None:
+    path = tmp_path / "backlog.mcap"
+    recorder = start_recorder(ros, path, [RUN_CONFIG, CANDIDATE])
+    flood(ros, recorder, [(RUN_CONFIG, wide_config(100).encode())], recorder_handled)
+    for i in range(60):  # published, never spun: waiting in the subscription
+        ros.publish(CANDIDATE, theta_message(100, candidate=i))
+    time.sleep(0.5)
+    assert recorder.counters["recorded"] == 1
+    recorder.close()
+    kept = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
+    assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == list(range(60))
