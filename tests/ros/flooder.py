@@ -1,10 +1,11 @@
 """A hostile peer on this host: floods the suite topics with forged but well-formed messages.
 
 Run as a process (``python tests/ros/flooder.py RUN_ID SECONDS RATE``) on the nodes' domain.
-It publishes RATE messages per second (0: as fast as it can), round-robin: candidates of the run with ids near 10**7, episode
-results and duel requests of the run with ids far outside its range, messages of another run,
-malformed and oversized duel requests, and statuses of a node that is not in the run. On
-SIGINT/SIGTERM or after SECONDS it prints how many messages it sent and exits 0.
+It publishes RATE messages per second (0: as fast as it can), round-robin: candidates of the
+run with ids near 10**7, episode results and duel requests of the run with ids far outside its
+range, messages of another run, malformed and oversized duel requests, and statuses of a node
+that is not in the run. On SIGINT/SIGTERM or after SECONDS it prints how many messages it
+sent and exits 0.
 """
 
 from __future__ import annotations
