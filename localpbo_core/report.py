@@ -27,6 +27,7 @@ without the software/date metadata, so the same input gives byte-identical files
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +36,12 @@ from typing import Any
 import numpy as np
 
 from localpbo_core.experiments.claims import claims_table
-from localpbo_core.experiments.paper import PAPER_POLICY_WARM_START, paper_seconds, problem_key
+from localpbo_core.experiments.paper import (
+    PAPER_POLICY_WARM_START,
+    PAPER_SECONDS,
+    paper_seconds,
+    problem_key,
+)
 from localpbo_core.settings import SettingError
 
 
@@ -55,6 +61,8 @@ class StoredRun:
     optimizer_seconds: float
     reused_from: str = ""
     """``<spec>/<run_id>`` when ``localpbo sweep --reuse`` copied the run from another sweep."""
+    code: dict[str, Any] | None = None
+    """The run's ``code`` block (:mod:`localpbo_core.provenance`); None if stored without."""
 
 
 def holm(pvalues: Sequence[float]) -> list[float]:
@@ -124,6 +132,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
                 cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
                 optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
                 reused_from=str(meta.get("reused_from", "")),
+                code=doc.get("code") if isinstance(doc.get("code"), dict) else None,
             )
         )
     if not runs:
@@ -186,16 +195,18 @@ def group_table(runs: Sequence[StoredRun], alpha: float) -> list[str]:
     results = {m: compare(v, alpha) for m, v in metrics.items()}
     paper = _paper_finals(runs[0])
     lines = [
-        "| algorithm | runs | evaluations | final best-seen | p (Holm) "
+        "| algorithm | runs | evaluations | code | final best-seen | p (Holm) "
         "| final cumulative | p (Holm) |"
         + (" paper best-seen | paper cumulative |" if paper else ""),
-        "| --- | ---: | ---: | --- | ---: | --- | ---: |" + (" ---: | ---: |" if paper else ""),
+        "| --- | ---: | ---: | --- | --- | ---: | --- | ---: |"
+        + (" ---: | ---: |" if paper else ""),
     ]
     for a in algorithms:
         cells = [a]
         mine = [r for r in runs if r.algorithm_label == a]
         cells.append(str(len(mine)))
         cells.append("/".join(sorted({str(r.best_seen.size) for r in mine})))
+        cells.append(code_cell(mine))
         for m in ("best_seen", "cumulative"):
             best, adjusted, tied = results[m]
             values = np.array(list(metrics[m][a].values()))
@@ -273,6 +284,194 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
             f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)}{note} | "
             f"{'' if paper is None else f'{paper:g}'} | {ratio} |"
         )
+    return lines
+
+
+# ---------------------------------------------------------------------- provenance
+CODE_CURRENT = "current"
+CODE_CHANGED = "changed since"
+CODE_NONE = "none stored"
+
+
+def code_state(run: StoredRun) -> str:
+    """Which code made ``run``: :data:`CODE_NONE` (stored without a code version),
+    :data:`CODE_CHANGED` (its algorithm's sources differ today,
+    :func:`localpbo_core.provenance.code_block`) or :data:`CODE_CURRENT`."""
+    if run.code is None:
+        return CODE_NONE
+    from localpbo_core.provenance import code_block
+
+    today = code_block(str(run.settings["algorithm"]))["algorithm_digest"]
+    return CODE_CURRENT if run.code.get("algorithm_digest") == today else CODE_CHANGED
+
+
+def code_cell(runs: Sequence[StoredRun]) -> str:
+    """The code states of ``runs`` (one state, or counts of each)."""
+    states = Counter(code_state(r) for r in runs)
+    if len(states) == 1:
+        return next(iter(states))
+    return ", ".join(f"{n} {state}" for state, n in sorted(states.items()))
+
+
+def _group_list(keys: Sequence[tuple[str, str, str]], total: int, algorithms: int = 0) -> str:
+    """(problem, variant, algorithm) keys as "problem (variant): a, b; ..." ("every group"
+    when they are all ``total`` groups of a spec; "every algorithm" for a problem that misses
+    all its ``algorithms``)."""
+    if not keys:
+        return ""
+    if len(keys) == total:
+        return "every group"
+    by_problem: dict[str, list[str]] = {}
+    for problem, variant, algorithm in sorted(keys):
+        label = problem + (f" ({variant})" if variant else "")
+        by_problem.setdefault(label, []).append(algorithm)
+    return "; ".join(
+        f"{p}: {'every algorithm' if len(a) == algorithms else ', '.join(a)}"
+        for p, a in by_problem.items()
+    )
+
+
+def provenance_table(runs: Sequence[StoredRun]) -> list[str]:
+    """Per spec: runs with a code version, the commits they name, and the groups (problem,
+    variant, algorithm) whose runs were made by other code than today's: the algorithm's
+    sources changed since, or no code version stored."""
+    lines = [
+        "| spec | runs | with a code version | commits | algorithm changed since "
+        "| no code version stored |",
+        "| --- | ---: | ---: | --- | --- | --- |",
+    ]
+    for spec in sorted({r.spec for r in runs}):
+        mine = [r for r in runs if r.spec == spec]
+        groups: dict[tuple[str, str, str], set[str]] = {}
+        for r in mine:
+            key = (r.problem_label, r.variant, r.algorithm_label)
+            groups.setdefault(key, set()).add(code_state(r))
+        changed = [k for k, v in groups.items() if CODE_CHANGED in v]
+        unknown = [k for k, v in groups.items() if CODE_NONE in v]
+        commits = Counter(
+            str(r.code.get("commit"))[:10] + ("+dirty" if r.code.get("dirty") else "")
+            for r in mine
+            if r.code is not None
+        )
+        lines.append(
+            f"| {spec} | {len(mine)} | {sum(r.code is not None for r in mine)} | "
+            + (", ".join(f"{c} ({n})" for c, n in sorted(commits.items())) or "—")
+            + f" | {_group_list(changed, len(groups)) or '—'} "
+            f"| {_group_list(unknown, len(groups)) or '—'} |"
+        )
+    return lines
+
+
+# ---------------------------------------------------------------------- coverage
+COVERAGE_SEEDS = tuple(range(10))
+"""The seeds a group needs to count as stored: the paper's 10 runs per experiment (Sec. 6)."""
+
+
+PAPER_SPECS = (
+    "synthetic",
+    "gp_within",
+    "gp_out_of_model",
+    "policy_warm_start",
+    "policy_no_warm_start",
+    "ablation_prefsqp_line_search",
+    "ablation_turpbo_acquisition",
+    "ablation_qeubo_batch",
+    "ablation_noise",
+)
+"""The bundled specs of the paper's experiments (Sec. 6, App. D.4-D.7)."""
+
+
+def bundled_specs() -> list[str]:
+    """The names of the bundled experiment specs (``localpbo_core/experiments/*.yaml``) but
+    the CI spec ``tiny``."""
+    folder = Path(__file__).resolve().parent / "experiments"
+    return sorted(p.stem for p in folder.glob("*.yaml") if p.stem != "tiny")
+
+
+def coverage_specs(runs: Sequence[StoredRun]) -> list[str]:
+    """The specs the coverage table lists: the paper's (:data:`PAPER_SPECS`), stored or not,
+    and every other bundled spec with stored runs among ``runs``."""
+    stored = {r.spec for r in runs}
+    return sorted(set(PAPER_SPECS) | (stored & set(bundled_specs())))
+
+
+def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]:
+    """Per bundled spec: its groups (problem × variant × algorithm) and runs at
+    :data:`COVERAGE_SEEDS`, how many of them are stored in ``runs``, and the groups not
+    stored with every one of those seeds, split by whether the paper ran them (a group of a
+    main experiment whose algorithm the paper's App. E table has no time for on that problem,
+    e.g. HB-EI and GIPBO beyond 32 dimensions, was not run in the paper)."""
+    from localpbo_core.experiments import load_spec
+
+    seeds: dict[tuple[str, str, str, str], set[int]] = {}
+    for r in runs:
+        seeds.setdefault((r.spec, r.problem_label, r.variant, r.algorithm_label), set()).add(r.seed)
+    wanted = set(COVERAGE_SEEDS)
+    lines = [
+        f"| spec | paper | groups with seeds {min(wanted)}–{max(wanted)} | runs "
+        "| not stored with all those seeds | of those, not in the paper's App. E table |",
+        "| --- | --- | ---: | ---: | --- | --- |",
+    ]
+    for name in specs:
+        spec = load_spec(name, validate=False)
+        entries = {p.label: p for p in spec.problems}
+        keys = [
+            (p.label, v.label, a.label)
+            for p in spec.problems
+            for v in spec.variants
+            for a in spec.algorithms
+        ]
+        have = {k: seeds.get((spec.name, *k), set()) & wanted for k in keys}
+        complete = [k for k in keys if have[k] == wanted]
+        stored = sum(len(v) for v in have.values())
+        missing = [k for k in keys if have[k] != wanted]
+        unpaper = []
+        for p, v, a in missing:
+            entry = entries[p]
+            key = problem_key(entry.name, dict(entry.options), spec.within_model)
+            if not v and key in PAPER_SECONDS and paper_seconds(key, a) is None:
+                unpaper.append((p, v, a))
+        n = len(spec.algorithms)
+        lines.append(
+            f"| {spec.name} | {spec.paper} | {len(complete)} of {len(keys)} | {stored} of "
+            f"{len(keys) * len(wanted)} | {_group_list(missing, len(keys), n) or '—'} | "
+            f"{_group_list(unpaper, len(keys), n) or '—'} |"
+        )
+    return lines
+
+
+def noise_table(runs: Sequence[StoredRun]) -> list[str]:
+    """The oracle's noise std per problem and noise level of the stored runs: the noise
+    fraction × the problem's value range (paper Sec. 6: 10 % of the approximate value range;
+    a task's ``value_range`` option when the spec gives one). GP sample paths have one range
+    per path (per seed) and are summarised by their problem label only."""
+    from localpbo_core.problems.registry import make_problem
+
+    rows: dict[tuple[str, float], tuple[str, float | None]] = {}
+    for r in runs:
+        s = r.settings
+        fraction = float(s.get("noise_fraction", 0.1))
+        label = s["problem"] if s["problem"] != "gp_sample" else "gp_sample"
+        key = (label, fraction)
+        if key in rows:
+            continue
+        if s["problem"] == "gp_sample":
+            rows[key] = ("each path's own", None)
+            continue
+        options = dict(s["problem_options"])
+        spread = float(
+            options["value_range"]
+            if "value_range" in options
+            else make_problem(s["problem"], **options).value_range
+        )
+        rows[key] = (f"{spread:.4g}", fraction * spread)
+    lines = [
+        "| problem | value range | noise fraction | noise std σ |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for (problem, fraction), (spread_cell, sigma) in sorted(rows.items()):
+        cell = f"{fraction:g} × each path's range" if sigma is None else f"{sigma:.3g}"
+        lines.append(f"| {problem} | {spread_cell} | {fraction:g} | {cell} |")
     return lines
 
 
@@ -432,6 +631,34 @@ def write_report(
             "",
         ]
     lines += [
+        "## Coverage",
+        "",
+        "What is stored, against the specs of the paper's experiments and every other "
+        "bundled spec with stored runs (`localpbo_core/experiments/*.yaml`), at the paper's "
+        f"{len(COVERAGE_SEEDS)} seeds per group (a group: one problem, variant and algorithm; "
+        "the specs list more seeds).",
+        "",
+        *coverage_table(runs, coverage_specs(runs)),
+        "",
+        "## Noise",
+        "",
+        "The oracle's noise std σ of the stored runs: the run's noise fraction × the problem's "
+        "value range (max − min over 10,000 scrambled Sobol points, seed 0, or a task's "
+        "`value_range` option).",
+        "",
+        *noise_table(runs),
+        "",
+        "## Provenance",
+        "",
+        "Which code made the stored runs (`code` block of a run: digests of the sources it "
+        "executes and of its algorithm's, git commit; `localpbo_core/provenance.py`). "
+        "Per group the tables above say \"current\" (the algorithm's sources are today's), "
+        '"changed since" (they changed after the run was stored: a rerun may differ) or '
+        '"none stored" (stored before runs carried a code version: which code made it is '
+        "known only from the commit that added it). Groups made by other code than today's:",
+        "",
+        *provenance_table(runs),
+        "",
         "## Compute time",
         "",
         "Optimizer seconds per run (ask and tell; evaluations and oracle excluded). The "
@@ -442,8 +669,11 @@ def write_report(
         "",
         "## The paper's claims",
         "",
-        "Each claim in the paper's words, how it is read as a test on our final values, and "
-        'whether our runs agree ("not run": we have no runs for it yet).',
+        "Each claim of Sec. 6 and App. D in the paper's words, the rule it is read as "
+        '(comparative words as comparisons: "best" is the highest mean, "most" a count '
+        'against every other algorithm, "consistently" every problem; '
+        "`localpbo_core/experiments/claims.py`), what our runs show, and whether it holds "
+        '("not run": no runs for it yet).',
         "",
         *claims_table(runs, alpha),
         "",
@@ -455,37 +685,47 @@ def write_report(
     return path
 
 
-RESULTS_PAGE = {
-    "results": "docs/results",
-    "out": "docs",
-    "name": "RESULTS.md",
-    "figures": "results/figures",
-    "notes": "docs/results/notes.md",
-    "title": "Results: localpbo next to the paper",
-}
-"""Where ``docs/RESULTS.md`` comes from (paths relative to the repository root): the stored
-runs under ``docs/results``, the notes appended verbatim. :func:`write_results_page` is
-``localpbo report docs/results --out docs --name RESULTS.md --figures results/figures
---notes docs/results/notes.md --title "Results: localpbo next to the paper"``."""
+RESULTS_COMMAND = (
+    "localpbo",
+    "report",
+    "docs/results",
+    "--out",
+    "docs",
+    "--name",
+    "RESULTS.md",
+    "--figures",
+    "results/figures",
+    "--notes",
+    "docs/results/notes.md",
+    "--title",
+    "Results: localpbo next to the paper",
+)
+"""The command that makes ``docs/RESULTS.md`` from the runs committed under ``docs/results``
+(run in the repository's root; ``docs/reproducing.md`` documents it word for word, and
+:func:`write_results_page` runs exactly these arguments)."""
+
+
+def results_page_args(root: Path, out: Path | None = None) -> Any:
+    """:data:`RESULTS_COMMAND` parsed by ``localpbo``'s own parser, its paths taken relative to
+    ``root``; ``--out`` replaced by ``out`` if given (to compare with the committed page)."""
+    from localpbo_core.cli import _build_parser
+
+    args = _build_parser().parse_args(list(RESULTS_COMMAND[1:]))
+    args.results = [str(root / r) for r in args.results]
+    args.out = str(root / args.out if out is None else out)
+    args.notes = str(root / args.notes)
+    return args
 
 
 def write_results_page(root: Path, out: Path | None = None) -> Path:
-    """Regenerate ``docs/RESULTS.md`` of the repository at ``root`` (into ``out`` instead of
-    ``root/docs`` if given, e.g. to compare with the committed page)."""
-    page = RESULTS_PAGE
+    """Regenerate ``docs/RESULTS.md`` of the repository at ``root`` with
+    :data:`RESULTS_COMMAND` (into ``out`` instead of ``root/docs`` if given)."""
+    args = results_page_args(root, out)
+    return _report_of(args)
+
+
+def _report_of(args: Any) -> Path:
     return write_report(
-        [root / page["results"]],
-        root / page["out"] if out is None else out,
-        name=page["name"],
-        figures=page["figures"],
-        notes=root / page["notes"],
-        title=page["title"],
-    )
-
-
-def main_report(args: Any) -> int:
-    """The ``localpbo report`` command."""
-    path = write_report(
         args.results,
         Path(args.out),
         alpha=args.alpha,
@@ -494,9 +734,37 @@ def main_report(args: Any) -> int:
         notes=None if args.notes is None else Path(args.notes),
         title=args.title,
     )
-    print(f"report: {path}")
+
+
+def main_report(args: Any) -> int:
+    """The ``localpbo report`` command."""
+    print(f"report: {_report_of(args)}")
     return 0
 
 
-if __name__ == "__main__":  # python -m localpbo_core.report: regenerate docs/RESULTS.md
-    print(f"report: {write_results_page(Path(__file__).resolve().parents[1])}")
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m localpbo_core.report [--out DIR]``: regenerate ``docs/RESULTS.md``."""
+    import argparse
+    import shlex
+
+    parser = argparse.ArgumentParser(
+        prog="python -m localpbo_core.report",
+        description="Regenerate docs/RESULTS.md of this checkout from the runs committed under "
+        f"docs/results, i.e. run `{shlex.join(RESULTS_COMMAND)}` in the repository's root. "
+        "For a report of other runs use `localpbo report --help`.",
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="write the page and its figures into this folder instead of docs/ "
+        "(e.g. to compare with the committed page)",
+    )
+    args = parser.parse_args(argv)
+    root = Path(__file__).resolve().parents[1]
+    page = write_results_page(root, None if args.out is None else Path(args.out))
+    print(f"report: {page}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
