@@ -1,0 +1,116 @@
+"""Decision time of the hybrid against TuRPBO at the same number of evaluations n.
+
+Runs both algorithms in-process (the loop of ``localpbo bench``: optimizer, evaluation,
+noisy duel; 10 % noise) on one problem and the same seeds, and prints the optimizer's mean
+decision time per evaluation (``ask`` and the ``tell`` charged to it, episodes excluded) in
+windows of n (thirds of the iterations after the initial design), the ratio hybrid/TuRPBO
+per window, and the hybrid's mean time per global and per local ask. A global ask of the
+hybrid is TuRPBO's plus the handover check (the gradient, its posterior covariance and, for
+Newton steps, the Hessian at the center); a local ask fits the model and takes one step.
+
+    python -m localpbo_core.benchmarks.hybrid_compute [--problem hartmann6] [--seeds 0-2]
+        [--option KEY=VALUE ...]
+
+Asserts nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from localpbo_core.loop import run_session
+from localpbo_core.session import Session
+from localpbo_core.settings import RunSettings
+from localpbo_core.threads import use_fast_threads
+
+
+def _seeds(text: str) -> list[int]:
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def _option(text: str) -> tuple[str, object]:
+    key, sep, raw = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    value: object = raw
+    for cast in (int, float):
+        try:
+            value = cast(raw)
+            break
+        except ValueError:
+            continue
+    return key, value
+
+
+def _run(
+    problem: str, algorithm: str, seed: int, options: dict[str, object]
+) -> tuple[np.ndarray, list[str]]:
+    """Per-evaluation decision seconds after the initial design, and the hybrid's modes."""
+    settings = RunSettings(
+        algorithm=algorithm,
+        problem=problem,
+        seed=seed,
+        noise_fraction=0.1,
+        optimizer_options=options if algorithm == "hybrid" else {},
+    )
+    session = Session(settings)
+    records = run_session(session).records
+    init = session.optimizer.initial_design
+    secs = np.array([r.decision_seconds for r in records[init:]])
+    return secs, list(getattr(session.optimizer, "modes", []))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the benchmark and print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problem", default="hartmann6")
+    parser.add_argument("--seeds", default="0-2", help="e.g. 0-2 or 0,3")
+    parser.add_argument("--option", type=_option, action="append", default=[])
+    args = parser.parse_args(argv)
+    use_fast_threads()
+    options = dict(args.option)
+    seeds = _seeds(args.seeds)
+    per: dict[str, list[np.ndarray]] = {"turpbo": [], "hybrid": []}
+    global_s: list[float] = []
+    local_s: list[float] = []
+    t0 = time.perf_counter()
+    for seed in seeds:
+        for algorithm in ("turpbo", "hybrid"):
+            secs, modes = _run(args.problem, algorithm, seed, options)
+            per[algorithm].append(secs)
+            if algorithm == "hybrid" and len(modes) == len(secs):  # q = 1: one per ask
+                global_s += [s for s, m in zip(secs, modes, strict=True) if m == "global"]
+                local_s += [s for s, m in zip(secs, modes, strict=True) if m == "local"]
+    n_iter = min(min(len(s) for s in v) for v in per.values())
+    print(
+        f"{args.problem}, seeds {seeds}, {n_iter} iterations after the initial design, "
+        f"hybrid options {options or 'default'} ({time.perf_counter() - t0:.0f} s wall)"
+    )
+    print(f"{'evaluations after init':>24} {'turpbo s':>10} {'hybrid s':>10} {'ratio':>7}")
+    edges = np.linspace(0, n_iter, 4).astype(int)
+    for lo, hi in itertools.pairwise(edges):
+        tr = float(np.mean([s[lo:hi].mean() for s in per["turpbo"]]))
+        hy = float(np.mean([s[lo:hi].mean() for s in per["hybrid"]]))
+        print(f"{f'{lo + 1}-{hi}':>24} {tr:10.4f} {hy:10.4f} {hy / tr:7.2f}")
+    tr_all = float(np.mean([s[:n_iter].sum() for s in per["turpbo"]]))
+    hy_all = float(np.mean([s[:n_iter].sum() for s in per["hybrid"]]))
+    print(f"{'whole run (s per run)':>24} {tr_all:10.2f} {hy_all:10.2f} {hy_all / tr_all:7.2f}")
+    if global_s:
+        print(f"hybrid global asks: {len(global_s)}, mean {np.mean(global_s):.4f} s")
+    if local_s:
+        print(f"hybrid local asks:  {len(local_s)}, mean {np.mean(local_s):.4f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
