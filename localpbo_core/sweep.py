@@ -9,7 +9,9 @@
   existing cluster instead (every node needs this package installed). Ray sets
   ``OMP_NUM_THREADS`` to a task's ``num_cpus`` (1) in its workers, so torch and BLAS run one
   thread per task, which is also the rule of :mod:`localpbo_core.threads`.
-  ``--in-process`` runs the plan sequentially without Ray.
+  ``--in-process`` runs the plan sequentially without Ray. The embedded Ray runs in a
+  private temporary folder under a watchdog process, so that neither its processes nor its
+  folder outlive the driver, also when the driver is killed (:mod:`localpbo_core.ray_cleanup`).
 * **Storage**: one gzip-compressed JSON document per finished run,
   ``OUT/runs/<run_id>.json.gz`` (``run_id`` = ``<problem>__<algorithm>[__<variant>]__seed<k>``):
   the content of ``localpbo bench``'s ``runs/*.json`` (schema ``localpbo/run/v1``: settings,
@@ -368,10 +370,21 @@ default on Windows and macOS) and a cluster head (servers on all interfaces). Th
 Ray sets it to ``0`` before Ray is imported, unless the user set it."""
 
 
+_SESSION: Path | None = None
+"""The private temporary folder of the embedded Ray this process started, if it runs
+(:mod:`localpbo_core.ray_cleanup`)."""
+
+
 def start_ray(address: str | None, workers: int | None) -> bool:
     """Connect to the Ray cluster at ``address``, or start the embedded one (``workers`` CPUs,
     servers on the loopback address only, no dashboard) unless Ray is already running.
-    Returns True if this call started or connected Ray (the caller shuts it down)."""
+    Returns True if this call started or connected Ray (the caller stops it: :func:`stop_ray`).
+
+    The embedded Ray never joins a cluster it finds on this machine (``address="local"``),
+    runs in a private temporary folder under a watchdog that stops its processes and removes
+    the folder once this process ends, however it ends (:mod:`localpbo_core.ray_cleanup`),
+    and first cleans up after earlier drivers that were killed with their watchdogs."""
+    global _SESSION
     if address is None:
         os.environ.setdefault(LOOPBACK_ONLY_ENV, "0")
     import ray
@@ -380,9 +393,29 @@ def start_ray(address: str | None, workers: int | None) -> bool:
         return False
     kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
     if address is None:
+        from localpbo_core import ray_cleanup
+
+        ray_cleanup.clean_stale()
+        _SESSION = folder = ray_cleanup.make_temp_dir()
+        ray_cleanup.start_watchdog(folder)
         kwargs["num_cpus"] = workers or os.cpu_count() or 1
-    ray.init(address=address, logging_level=logging.ERROR, **kwargs)
+        kwargs["_temp_dir"] = str(folder)
+    ray.init(address=address or "local", logging_level=logging.ERROR, **kwargs)
     return True
+
+
+def stop_ray() -> None:
+    """``ray.shutdown()``; after the embedded Ray, also stop any of its processes still
+    running and remove its temporary folder."""
+    global _SESSION
+    import ray
+
+    ray.shutdown()
+    if _SESSION is not None:
+        from localpbo_core import ray_cleanup
+
+        ray_cleanup.clean(_SESSION, ray_cleanup.WATCHDOG_GRACE_S)
+        _SESSION = None
 
 
 def _run_on_ray(
@@ -393,7 +426,16 @@ def _run_on_ray(
     fail: Callable[[PlannedRun, str], None],
     stop_on_sigterm: bool,
 ) -> None:
-    started = start_ray(address, workers)
+    try:
+        with _sigterm_interrupts(stop_on_sigterm):
+            started = start_ray(address, workers)
+    except (KeyboardInterrupt, SystemExit) as exc:
+        # Ctrl-C, or SIGTERM through the handler ray.init installs first (sys.exit(SIGTERM)),
+        # while Ray starts: stop what has started; the sweep ends as interrupted
+        if isinstance(exc, SystemExit) and not (stop_on_sigterm and exc.code == signal.SIGTERM):
+            raise
+        stop_ray()
+        raise KeyboardInterrupt from None
     import ray
 
     try:
@@ -414,7 +456,7 @@ def _run_on_ray(
                     store(plan, doc)
     finally:
         if started:
-            ray.shutdown()
+            stop_ray()
 
 
 def _spec_path(path: str) -> str:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from localpbo_core import ray_cleanup
 from localpbo_core.cli import main, settings_document
 from localpbo_core.experiments import load_spec
 from localpbo_core.report import write_report
@@ -23,6 +24,7 @@ from localpbo_core.sweep import (
     run_path,
     select_runs,
     start_ray,
+    stop_ray,
     sweep,
 )
 
@@ -35,7 +37,7 @@ def local_ray():
     """The sweep's embedded Ray with 2 workers for the module (the sweep reuses it)."""
     assert start_ray(None, 2)
     yield
-    ray.shutdown()
+    stop_ray()
 
 
 def test_embedded_ray_listens_on_loopback_only(local_ray) -> None:
@@ -172,40 +174,141 @@ def test_interrupted_sweep_keeps_what_finished_and_continues(spec, reference, tm
     assert_same_runs(spec, tmp_path, reference)
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
-    """A real ``localpbo sweep`` process: the signal stops it within seconds, exit 130, the
-    summary printed, every stored run complete; running it again finishes the rest."""
-    out = tmp_path / "out"
+def _sweep_cmd(out: Path) -> list[str]:
     cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "synthetic", "--out", str(out)]
     cmd += ["--problems", "hartmann6", "--algorithms", "turpbo", "--seeds", "0-5"]
-    cmd += ["--workers", "2", "--no-progress"]
+    return [*cmd, "--workers", "2", "--no-progress"]
+
+
+def _start_sweep(out: Path) -> tuple[subprocess.Popen[str], Path]:
+    """A real ``localpbo sweep`` process, once it has stored a run (mid-sweep), and its
+    embedded Ray's private folder."""
     proc = subprocess.Popen(
-        cmd,
+        _sweep_cmd(out),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as in a terminal
     )
     runs = out / "runs"
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 300  # a loaded machine: the first run may take minutes
     while not (runs.is_dir() and any(runs.glob("*.json.gz"))):  # one run stored: mid-sweep
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
         time.sleep(0.1)
+    folders = list(ray_cleanup.PARENT.glob(f"{ray_cleanup.PREFIX}{proc.pid}-*"))
+    assert len(folders) == 1, folders  # the embedded Ray runs in its private folder
+    assert ray_cleanup.holders(folders[0])  # its processes hold their logs there
+    assert not list(Path("/tmp/ray").glob(f"session_*_{proc.pid}"))  # not in Ray's default
+    return proc, folders[0]
+
+
+def _watchdogs(pid: int) -> list[int]:
+    """Running watchdog processes of driver ``pid``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        try:
+            cmdline = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if b"localpbo_core.ray_cleanup" in cmdline and str(pid).encode() in cmdline:
+            found.append(int(entry.name))
+    return found
+
+
+def _left_behind(proc: subprocess.Popen[str], folder: Path, within_s: float) -> list[str]:
+    """What of the sweep's Ray is still there after ``within_s`` seconds (empty: nothing)."""
+    deadline = time.monotonic() + within_s
+    while True:
+        left = [f"pid {pid} holds {folder}" for pid in ray_cleanup.holders(folder)]
+        left += [f"watchdog {pid}" for pid in _watchdogs(proc.pid)]
+        left += [str(folder)] if folder.exists() else []
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.2)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
+    """A real ``localpbo sweep`` process: the signal stops it within seconds, exit 130, the
+    summary printed, every stored run complete, no Ray process and no Ray folder left (the
+    watchdog gone too); running it again finishes the rest."""
+    out = tmp_path / "out"
+    proc, folder = _start_sweep(out)
     proc.send_signal(signum)
     sent = time.monotonic()
     stdout, stderr = proc.communicate(timeout=60)
-    assert time.monotonic() - sent < 15
+    assert time.monotonic() - sent < 30
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "interrupted: the same command continues" in stderr
-    finished = sorted(runs.glob("*.json.gz"))
+    assert not ray_cleanup.holders(folder) and not folder.exists()  # at the driver's exit
+    assert _left_behind(proc, folder, 10.0) == []
+    finished = sorted((out / "runs").glob("*.json.gz"))
     assert 1 <= len(finished) < 6 and "left" in stdout
     for path in finished:
         assert read_run(path)["run"]["seed"] in range(6)
-    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    again = subprocess.run(_sweep_cmd(out), capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
     assert f"{len(finished)} already stored" in again.stdout
-    assert len(list(runs.glob("*.json.gz"))) == 6
+    assert len(list((out / "runs").glob("*.json.gz"))) == 6
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 2.0])
+def test_sigterm_while_ray_starts_stops_the_sweep_cleanly(delay_s, tmp_path) -> None:
+    """SIGTERM while the embedded Ray is still starting (its private folder made, ``ray.init``
+    under way, whose own handler turns SIGTERM into ``sys.exit``): exit 130 without a
+    traceback, nothing of Ray left."""
+    proc = subprocess.Popen(
+        _sweep_cmd(tmp_path / "out"), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 60
+    while not (folders := list(ray_cleanup.PARENT.glob(f"{ray_cleanup.PREFIX}{proc.pid}-*"))):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.02)
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted" in stderr
+    assert _left_behind(proc, folders[0], 10.0) == []
+
+
+def test_sigkill_of_the_driver_leaves_nothing_once_its_watchdog_has_run(tmp_path) -> None:
+    """SIGKILL gives the driver no chance to stop Ray; its watchdog stops every process of
+    the session (Ray's agents ignore SIGTERM: SIGKILL after 0.5 s) and removes the folder.
+    Measured here with both cores busy: nothing left 2-10 s after the kill; allowed: 30 s."""
+    proc, folder = _start_sweep(tmp_path / "out")
+    assert _watchdogs(proc.pid)
+    proc.kill()
+    proc.communicate(timeout=30)
+    assert _left_behind(proc, folder, 30.0) == []
+
+
+def test_folders_of_killed_drivers_are_cleaned_by_the_next_sweep(tmp_path) -> None:
+    """Driver and watchdog both SIGKILLed: the next embedded Ray start finds the folder of a
+    driver that no longer runs, stops what holds it (a process ignoring SIGTERM too) and
+    removes it; the folder of a running driver is left alone."""
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    stale = tmp_path / f"{ray_cleanup.PREFIX}{dead.pid}-abc123"
+    alive = tmp_path / f"{ray_cleanup.PREFIX}{os.getpid()}-abc123"
+    stale.mkdir()
+    alive.mkdir()
+    stubborn = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import signal, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+            "log = open(sys.argv[1], 'w'); print('up', flush=True); time.sleep(120)",
+            str(stale / "agent.log"),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert stubborn.stdout is not None and stubborn.stdout.readline() == "up\n"
+    assert ray_cleanup.holders(stale) == [stubborn.pid]
+    assert ray_cleanup.clean_stale(tmp_path) == [stale]
+    assert stubborn.wait(timeout=10) == -signal.SIGKILL
+    assert not stale.exists() and alive.is_dir()
 
 
 def test_reuse_copies_identical_runs_and_computes_the_rest(
