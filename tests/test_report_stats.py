@@ -115,3 +115,54 @@ def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() 
     assert cells["walker2d_short"] == ["", " |"]
     assert cells["hartmann6_b40"] == ["", " |"]
     assert cells["gp8"][0] == f"{paper_seconds('gp8_l0.1/out', 'sobol'):g}"
+
+
+def test_provenance_per_run_group_and_spec() -> None:
+    """A run with today's algorithm digest is current, another digest "changed since", none
+    "none stored"; the provenance table lists the groups made by other code per spec."""
+    from localpbo_core.provenance import code_block
+    from localpbo_core.report import (
+        CODE_CHANGED,
+        CODE_CURRENT,
+        CODE_NONE,
+        StoredRun,
+        code_cell,
+        code_state,
+        provenance_table,
+    )
+
+    today = code_block("turpbo")
+
+    def run(spec: str, problem: str, seed: int, code: dict | None) -> StoredRun:
+        return StoredRun(
+            spec=spec,
+            problem_label=problem,
+            algorithm_label="turpbo",
+            variant="",
+            seed=seed,
+            within_model=False,
+            settings={"problem": problem, "algorithm": "turpbo"},
+            best_seen=np.zeros(1),
+            cumulative=np.zeros(1),
+            optimizer_seconds=0.0,
+            code=code,
+        )
+
+    old = {**today, "algorithm_digest": "0" * 16, "commit": "abcdef123456", "dirty": True}
+    runs = [
+        run("a", "hartmann6", 0, dict(today)),
+        run("a", "hartmann6", 1, old),
+        run("a", "levy32", 0, dict(today)),
+        run("b", "levy32", 0, None),
+    ]
+    assert [code_state(r) for r in runs] == [CODE_CURRENT, CODE_CHANGED, CODE_CURRENT, CODE_NONE]
+    assert code_cell(runs[:2]) == "1 changed since, 1 current"
+    assert code_cell(runs[2:3]) == "current"
+    rows = provenance_table(runs)[2:]
+    commit = f"{str(today['commit'])[:10]}{'+dirty' if today['dirty'] else ''}"
+    assert rows[0] == (
+        f"| a | 3 | 3 | abcdef1234+dirty (1), {commit} (2) | hartmann6: turpbo | — |"
+        if "abcdef1234+dirty" < commit
+        else f"| a | 3 | 3 | {commit} (2), abcdef1234+dirty (1) | hartmann6: turpbo | — |"
+    )
+    assert rows[1] == "| b | 1 | 0 | — | — | every group |"
