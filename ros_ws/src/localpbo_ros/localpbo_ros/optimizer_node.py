@@ -15,7 +15,8 @@ optimizer never sees a failed duel.
 
 Speculation (parameter ``speculate``, for a person answering): while the last duel of an ask
 is pending, the next ask is prepared for each of its possible answers in a background thread
-(:meth:`localpbo_ros.driver.Driver.speculate`), so the next duel goes out as soon as the
+(:meth:`localpbo_ros.driver.Driver.speculate`; it starts once the duel's episode results
+are heard, or ``SPECULATE_WAIT_S`` after the request), so the next duel goes out as soon as the
 answer arrives; what is asked is the same either way. Every duel request carries
 ``decision_seconds``: the time from the answer that completed the previous ask to the request
 (``localpbo bag-info`` summarises them). Counter: ``speculated`` (answers whose next ask was
@@ -238,6 +239,8 @@ PARAMS = [
 
 TICK_S = 0.05
 """Period of the start / timeout / re-publish check."""
+SPECULATE_WAIT_S = 1.0
+"""Speculation starts when the open duel's episode results are in, or this long after."""
 WAIT_NOTE_S = 1.0
 """Seconds of waiting for subscribers/workers before the optimizer says what it waits for."""
 
@@ -359,6 +362,8 @@ class OptimizerNode(SuiteNode):
         self._decision_s: dict[int, float] = {}  # duel id -> decision time of its ask
         self.published = Published()  # ids sent, in the status: verify finds a bag's gaps
         self._answered_at = 0.0  # when the answer that completed the last ask arrived
+        self._evaluated: set[int] = set()  # candidates whose episode result was heard
+        self._speculate_due: float | None = None  # speculate at the latest then
         self._cpu0 = 0.0
         self.started_at = 0.0
         self.finished_at = 0.0
@@ -404,6 +409,7 @@ class OptimizerNode(SuiteNode):
             elif now - self._waiting_since >= WAIT_NOTE_S:
                 self._note_waiting(*seen)
             return
+        self._maybe_speculate()
         if self.pool.outstanding() and any(
             w not in self.pool.live(now) for w in self.pool.outstanding().values()
         ):
@@ -447,7 +453,7 @@ class OptimizerNode(SuiteNode):
             self._publish_incumbent()
             self._publish_pending()
             self._deadline = self._now() + self.settings["duel_timeout_s"]
-            self._speculate()
+            self._speculate_soon()
         else:
             self._next_step()
 
@@ -461,7 +467,25 @@ class OptimizerNode(SuiteNode):
             self._publish_request(req)
         self._last_publish = self._now()
         self._deadline = self._last_publish + self.settings["duel_timeout_s"]
-        self._speculate()
+        self._speculate_soon()
+
+    def _speculate_soon(self) -> None:
+        """Speculate once the open duel's episode results are in, or ``SPECULATE_WAIT_S``
+        after the request: an episode that was not run ahead then runs without a decision
+        competing for the interpreter, and the person's watching time is the speculation's."""
+        if not self.settings["speculate"]:
+            return
+        self._speculate_due = self._now() + SPECULATE_WAIT_S
+        self._maybe_speculate()
+
+    def _maybe_speculate(self) -> None:
+        due = self._speculate_due
+        if due is None or self.finished:
+            return
+        pending = {c.candidate_id for c in self.driver.pending_candidates()}
+        if pending <= self._evaluated or self._now() >= due:
+            self._speculate_due = None
+            self._speculate()
 
     def _speculate(self) -> None:
         if self.settings["speculate"] and self.driver.speculate(self._ahead) is not None:
@@ -556,9 +580,13 @@ class OptimizerNode(SuiteNode):
         if isinstance(result, DecodeError):
             self.drop_decode(result)
             return
-        self.pool.result(result.candidate_id, result.status is EpisodeStatus.OK)
+        ok = result.status is EpisodeStatus.OK
+        self.pool.result(result.candidate_id, ok)
+        if ok and result.candidate_id < self.driver.session.spent_ids[0]:
+            self._evaluated.add(result.candidate_id)  # bounded: the run's own candidates
         if self._started and not self.finished:
             self._dispatch()  # the worker is free: its next candidate
+            self._maybe_speculate()
 
     # ------------------------------------------------------------------ outcomes
     def _on_outcome(self, msg: object) -> None:
@@ -610,7 +638,7 @@ class OptimizerNode(SuiteNode):
             else:
                 self._next_step()
         else:
-            self._speculate()  # the ask's last duel may be the only one left
+            self._speculate_soon()  # the ask's last duel may be the only one left
 
     def _retracted(self, duel_id: int) -> None:
         """A person took back the answer to ``duel_id``: the duel is pending again (the same
@@ -624,7 +652,7 @@ class OptimizerNode(SuiteNode):
         self._publish_incumbent()
         self._publish_pending()
         self._deadline = self._now() + self.settings["duel_timeout_s"]
-        self._speculate()
+        self._speculate_soon()
 
     def _refuse_retraction(self, duel_id: int, reason: str) -> None:
         self.counters[Reason.RETRACTION_REFUSED.value] += 1
