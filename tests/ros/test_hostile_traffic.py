@@ -417,7 +417,7 @@ def test_evaluator_queue_is_bounded_and_repeats_are_counted(ros: Any) -> None:
     assert c["candidates_for_others"] == 1
     # a refused run fails every candidate at once, none is queued
     node._queue.clear()
-    node.refusal = lambda: "target refused"  # type: ignore[method-assign]
+    node.refusal_reason = lambda: "target refused"  # type: ignore[method-assign]
     results = ros.collect(EPISODE_RESULT)
     flood(ros, node, [(CANDIDATE, CandidateMsg("t1", 7, theta).encode())], lambda n: len(results))
     decoded = EpisodeResult.decode(results[0])

@@ -12,7 +12,8 @@ share one rule for the candidates on ``/localpbo/candidate``:
   (``results_repeated``, no second evaluation); one queued or under evaluation is counted
   (``candidates_repeated``); a failed one is evaluated again when published again (the
   optimizer's retry);
-* while the worker refuses the run (:meth:`refusal`) every candidate gets a ``failed`` result;
+* while the worker refuses the run (:meth:`refusal_reason`) every candidate gets a ``failed``
+  result;
 * at most ``max_pending`` candidates wait (``dropped_buffer_full`` beyond).
 
 Memory stays bounded under forged traffic: θ and results are kept per id of the run's range
@@ -75,7 +76,7 @@ class EvaluatorNode(FollowerNode):
         self._thetas.clear()
         self._results.clear()
 
-    def refusal(self) -> str | None:
+    def refusal_reason(self) -> str | None:
         """Why this worker refuses the run (every candidate fails with it); None to serve."""
         return None
 
@@ -96,7 +97,7 @@ class EvaluatorNode(FollowerNode):
             return
         self._thetas[cid] = cand.theta
         cached = self._results.get(cid)
-        refused = self.refusal()
+        refused = self.refusal_reason()
         if cached is not None:
             self.counters["results_repeated"] += 1
             self._pub.publish(cached.encode())
