@@ -134,7 +134,7 @@ def run(tmp_path: Path, env: dict[str, str], mode: str, budget: int, **extra: An
     cmd = [
         LOCALPBO, "run", "--space", str(space),
         "--budget", str(budget), "--seed", "1", "--run-id", mode, "--bag", str(bag),
-        "--bridge", json.dumps(bridge),
+        "--bridge", json.dumps(bridge), "--max-retries", "5",
     ]  # fmt: skip
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -151,10 +151,13 @@ def test_every_score_is_its_trials_own_under_load(tmp_path: Path, load: None, mo
         controller.kill()
         controller.wait()
     thetas, results = recorded(bag)
-    assert len(results) >= 10
+    ok = [r for r in results if r.status.value == "ok"]
+    assert len({r.candidate_id for r in ok}) == 10  # the run completed: every candidate scored
     for res in results:
         cid = res.candidate_id
-        assert res.status.value == "ok", (cid, res.error)
+        if res.status.value == "failed":  # visibly: a starved target may fall silent
+            assert "no score sample for" in res.error, (cid, res.error)
+            continue
         assert res.episode_return is not None
         ks = prefix_lengths(thetas[cid], res.episode_return, 4 * STEPS)
         if mode == "duration":
@@ -164,43 +167,78 @@ def test_every_score_is_its_trials_own_under_load(tmp_path: Path, load: None, mo
 
 
 def test_a_target_killed_mid_trial_never_gives_ok(tmp_path: Path, load: None) -> None:
-    """SIGKILL at random points of 20 trials (restarted each time): each trial that was
-    under way when its target died fails; every ``ok`` is exact."""
+    """SIGKILL at random points of 20 trials (the target restarted each time): each trial that
+    was under way when its target died fails; every ``ok`` is exact."""
     env = environment(97)
     rng = random.Random(7)
-    kills: list[float] = []
+    kills = 0
     controller = start_controller(env)
     space = tmp_path / "thermal.yaml"
     space.write_text(SPACE)
     bag = tmp_path / "kill.mcap"
     bridge = {**BRIDGE, **MODES["done"], "trial_duration_s": 5.0, "service_timeout_s": 1.0}
     cmd = [
-        LOCALPBO, "run", "--space", str(space),
-        "--budget", "24", "--seed", "2", "--run-id", "kill", "--bag", str(bag),
-        "--bridge", json.dumps(bridge), "--failure-policy", "retry",
+        LOCALPBO, "run", "--space", str(space), "--budget", "200", "--seed", "2",
+        "--run-id", "kill", "--bag", str(bag), "--bridge", json.dumps(bridge),
+        "--failure-policy", "retry", "--max-retries", "1000", "--no-progress",
     ]  # fmt: skip
     runner = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
-        deadline = time.monotonic() + 400
-        while len(kills) < 20 and runner.poll() is None and time.monotonic() < deadline:
-            time.sleep(rng.uniform(0.05, 0.6))  # a trial takes ~0.25 s of samples + checks
+        deadline = time.monotonic() + 900
+        while kills < 20 and runner.poll() is None and time.monotonic() < deadline:
+            time.sleep(rng.uniform(0.05, 0.6))  # a trial: ~0.25 s of samples + its checks
             controller.kill()
             controller.wait()
-            kills.append(time.time())
+            kills += 1
             controller = start_controller(env)
-        runner.wait(timeout=600)
+        time.sleep(2.0)  # trials on the last instance
     finally:
         controller.kill()
         controller.wait()
-        if runner.poll() is None:
-            runner.send_signal(signal.SIGINT)
-            runner.wait(30)
+        runner.send_signal(signal.SIGINT)
+        out, _ = runner.communicate(timeout=60)
     thetas, results = recorded(bag)
     failed = [r for r in results if r.status.value == "failed"]
-    assert len(kills) == 20
-    assert failed, "some trials must have been cut by a kill"
-    for res in results:
-        if res.status.value == "ok":
-            assert res.episode_return is not None
-            ks = prefix_lengths(thetas[res.candidate_id], res.episode_return, 4 * STEPS)
-            assert ks == [STEPS], res.candidate_id
+    assert kills == 20, out
+    assert len(failed) >= 5, "kills land in trials or their checks"
+    ok = [r for r in results if r.status.value == "ok"]
+    assert ok, out
+    for res in ok:
+        assert res.episode_return is not None
+        ks = prefix_lengths(thetas[res.candidate_id], res.episode_return, 4 * STEPS)
+        assert ks == [STEPS], res.candidate_id
+
+
+def refused_run(tmp_path: Path, env: dict[str, str], space: str, **bridge: Any) -> Any:
+    (tmp_path / "s.yaml").write_text(space)
+    bag = tmp_path / "refused.mcap"
+    cmd = [
+        LOCALPBO, "run", "--space", str(tmp_path / "s.yaml"), "--budget", "6",
+        "--bag", str(bag), "--no-progress", "--bridge", json.dumps({**BRIDGE, **bridge}),
+    ]  # fmt: skip
+    t0 = time.monotonic()
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    assert not bag.exists() and not list(tmp_path.glob("*.mcap")), "a refused run leaves no bag"
+    assert "evaluations" not in done.stdout
+    return done, time.monotonic() - t0
+
+
+def test_a_parameter_the_target_lacks_is_refused_by_name_before_the_run(tmp_path: Path) -> None:
+    env = environment(98)
+    controller = start_controller(env)
+    try:
+        space = SPACE.replace("name: kd,", "name: kf,")  # kp, ki exist; kf does not
+        done, _ = refused_run(tmp_path, env, space)
+    finally:
+        controller.kill()
+        controller.wait()
+    assert done.returncode == 2, done.stderr
+    assert "target.kf" in done.stderr and "no parameter 'kf'" in done.stderr, done.stderr
+    assert "target.kp" not in done.stderr and "Traceback" not in done.stderr
+
+
+def test_an_absent_target_is_refused_within_its_wait(tmp_path: Path) -> None:
+    done, seconds = refused_run(tmp_path, environment(99), SPACE, target_wait_s=1.0)
+    assert done.returncode == 2, done.stderr
+    assert "target_node" in done.stderr and "/thermal has no parameter services" in done.stderr
+    assert seconds < 30, seconds  # start-up included; the wait itself is 1 s

@@ -12,7 +12,14 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from localpbo_examples.pid_controller_node import BRIDGE_SETTINGS, PidControllerNode
 from localpbo_examples.plant import PlantConfig, episode_cost
-from localpbo_ros.bridge import ScoreWindow, TargetParameter, check_target, target_names
+from localpbo_ros.bridge import (
+    Sample,
+    ScoreWindow,
+    TargetParameter,
+    TrialWindow,
+    check_target,
+    target_names,
+)
 from localpbo_ros.driver import make_run_config
 from localpbo_ros.param_bridge_node import ParamBridgeNode
 from localpbo_ros.replay import verify
@@ -359,3 +366,73 @@ def test_bridge_is_a_pool_worker(ros: Any) -> None:
     assert isinstance(res, EpisodeResult) and res.candidate_id == 1 and res.episode_return == 2.0
     assert bridge.status_info()["busy"] == ""
     bridge.close()
+
+
+# ---------------------------------------------------------------------- the trial window
+MS = 1_000_000
+
+
+def feed(window: TrialWindow, samples: list[tuple[int, int, float]]) -> list[Sample]:
+    """Offer (stamp in ms, sequence number, value) samples in arrival order."""
+    return [window.add(v, t * MS, seq) for t, seq, v in samples]
+
+
+def test_window_takes_only_samples_published_after_its_opening_answer() -> None:
+    w = TrialWindow("reward", "sum")
+    w.arm()  # set sent: samples of both trials may arrive before the answer that opens
+    got = feed(w, [(8, 1, 100.0), (9, 2, 100.0), (11, 3, 1.0), (12, 4, 2.0)])
+    assert got == [Sample.PENDING] * 4
+    w.start(10 * MS, 1000 * MS)  # the reset's answer was published at 10 ms
+    assert feed(w, [(13, 5, 3.0)]) == [Sample.TAKEN]
+    assert w.count == 3 and w.close() == (6.0, "")
+
+
+def test_a_done_taken_after_later_samples_still_ends_the_window_at_its_stamp() -> None:
+    w = TrialWindow("reward", "sum")
+    w.start(0, 10_000 * MS)
+    feed(w, [(1, 1, 1.0), (2, 2, 2.0), (4, 3, 50.0), (5, 4, 60.0)])  # 4 and 5 ms: after done
+    assert not w.complete
+    assert w.end_at(3 * MS)  # the done message, published at 3 ms, taken last
+    assert w.complete and w.count == 2
+    assert w.close() == (3.0, "")
+    w.start(100 * MS, None)
+    assert not w.end_at(99 * MS)  # a done of an earlier trial does not end this one
+
+
+def test_count_mode_is_exact_and_short_counts_fail() -> None:
+    w = TrialWindow("cost", "mean", samples=3)
+    w.start(0, 10_000 * MS)
+    got = feed(w, [(1, 1, 1.0), (2, 2, 2.0), (3, 3, 3.0), (4, 4, 99.0)])
+    assert got[-1] is Sample.AFTER and w.complete
+    assert w.close() == (-2.0, "")
+    w.start(10 * MS, 5 * MS)
+    feed(w, [(11, 5, 1.0), (12, 6, 1.0), (16, 7, 1.0)])  # the third is past the duration
+    assert w.close() == (None, "only 2 of 3 score samples in the trial")
+
+
+@pytest.mark.parametrize(
+    ("samples", "reason"),
+    [
+        ([(1, 1, 1.0), (2, 3, 1.0)], "1 score samples lost (sequence 1 -> 3)"),
+        ([(1, 7, 1.0), (2, 1, 1.0)], "another publisher (sequence 1 after 7)"),
+        ([(1, 1, 1.0), (2, 2, math.nan)], "1 non-finite score samples"),
+        ([(1, 1, 1.0), (900, 2, 1.0)], "no score sample for 0.899 s"),
+        ([(600, 1, 1.0)], "no score sample for 0.600 s"),
+    ],
+)
+def test_a_trial_with_a_hole_fails_naming_it(samples: list[Any], reason: str) -> None:
+    w = TrialWindow("reward", "mean", max_gap_ns=500 * MS)
+    w.start(0, 10_000 * MS)
+    feed(w, samples)
+    score, why = w.close()
+    assert score is None and reason in why
+
+
+def test_silence_before_the_first_sample_is_a_stall_later_silence_is_not() -> None:
+    w = TrialWindow("reward", "mean", max_gap_ns=500 * MS)
+    w.start(0, 10_000 * MS)
+    assert not w.stalled(400 * MS) and w.stalled(600 * MS)
+    w.start(1000 * MS, 10_000 * MS)
+    feed(w, [(1001, 1, 1.0)])
+    assert not w.stalled(5000 * MS)  # the target may stop at the end of its episode
+    assert w.close() == (1.0, "")

@@ -157,6 +157,8 @@ class Sample(Enum):
     """Published after the window closed (proves every earlier sample has arrived)."""
     CLOSED = "closed"
     """No window is open."""
+    PENDING = "pending"
+    """Kept until the window's opening stamp is known (:meth:`TrialWindow.arm`)."""
     NON_FINITE = "non_finite"
 
 
@@ -218,16 +220,31 @@ class TrialWindow:
             self._after or any(stamp > self.end_ns for stamp, _, _ in self._kept[-1:])
         )
 
-    def start(self, start_ns: int, duration_ns: int | None) -> None:
-        """Open the window for samples published after ``start_ns`` (and, with a duration, at
-        most ``duration_ns`` later)."""
+    def arm(self) -> None:
+        """A trial is being set up: keep every sample from now on until :meth:`start` says
+        which were published after the window opened (the node may take samples of the new
+        trial before the answer that opens the window)."""
         self.open = True
-        self.start_ns = start_ns
-        self.end_ns = None if duration_ns is None else start_ns + duration_ns
+        self.start_ns = -1
+        self.end_ns = None
         self.failure = ""
         self._kept = []
         self._seq_before = self._last_seq
         self._after = False
+
+    def start(self, start_ns: int, duration_ns: int | None) -> None:
+        """Open the window for samples published after ``start_ns`` (and, with a duration, at
+        most ``duration_ns`` later); samples kept since :meth:`arm` are sorted in or out."""
+        if not self.open or self.start_ns >= 0:
+            self.arm()
+        kept, self._kept = self._kept, []
+        self.start_ns = start_ns
+        self.end_ns = None if duration_ns is None else start_ns + duration_ns
+        for stamp, seq, value in kept:
+            if stamp <= start_ns:
+                self._seq_before = seq
+            else:
+                self._kept.append((stamp, seq, value))
 
     def end_at(self, stamp_ns: int) -> bool:
         """The trial was declared done at ``stamp_ns``: samples published later do not count.
@@ -243,6 +260,12 @@ class TrialWindow:
         self._last_seq = seq
         if not self.open:
             return Sample.CLOSED
+        if self.start_ns < 0:  # armed: the opening stamp is not known yet
+            if len(self._kept) >= self.max_kept:
+                self.failure = f"more than {self.max_kept} score samples in one trial"
+            else:
+                self._kept.append((stamp_ns, seq, value))
+            return Sample.PENDING
         if stamp_ns <= self.start_ns:
             self._seq_before = seq
             return Sample.BEFORE
@@ -265,7 +288,13 @@ class TrialWindow:
         ``max_gap_ns`` before ``now_ns`` without a sample. Silence after the first sample is
         judged when the next one arrives (a target may stop publishing at the end of its
         episode); a target that died is caught by the check after the trial."""
-        if self.open and not self._kept and self.max_gap_ns and not self.failure:
+        if (
+            self.open
+            and self.start_ns >= 0
+            and not self._kept
+            and self.max_gap_ns
+            and not self.failure
+        ):
             horizon = now_ns if self.end_ns is None else min(now_ns, self.end_ns)
             if horizon - self.start_ns > self.max_gap_ns:
                 self.failure = self._gap_text(horizon - self.start_ns)

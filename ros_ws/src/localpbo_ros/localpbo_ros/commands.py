@@ -150,6 +150,12 @@ def add_subcommands(subparsers: Any) -> None:
     run.add_argument("--failure-policy", choices=("retry", "stop"), default="retry")
     run.add_argument("--out", default="runs", help="directory for the bag")
     run.add_argument("--bag", default=None, help="bag path (default OUT/RUN_ID.mcap)")
+    run.add_argument(
+        "--max-retries",
+        type=int,
+        default=2,
+        help="retries per duel when an evaluation or answer fails (failure policy retry)",
+    )
     run.add_argument("--run-id", default=None, help="run id (default run-<UTC time>)")
     run.add_argument(
         "--resume",
@@ -257,6 +263,7 @@ def run_settings(args: argparse.Namespace) -> dict[str, Any]:
         "failure_policy": args.failure_policy,
         "space": args.space,
         "speculate": speculate_of(args),
+        "max_retries": args.max_retries,
         "oracle": args.oracle or "simulated",
     }
 

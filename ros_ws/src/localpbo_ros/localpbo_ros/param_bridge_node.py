@@ -561,6 +561,7 @@ class ParamBridgeNode(FollowerNode):
             for n, v in zip(self.targets, cand.theta, strict=True)
         ]
         self.applied = True
+        self.window.arm()  # samples from here on are kept until the window's start is known
         self._send(self._apply, SetParametersAtomically.Request(parameters=params), "applying")
 
     def _begin_trial(self, start_ns: int) -> None:
@@ -643,7 +644,7 @@ class ParamBridgeNode(FollowerNode):
             self.drop("non_finite", f"score sample {msg.data!r}")
         elif got is Sample.BEFORE:
             self.counters["scores_before_trial"] += 1
-        elif got is not Sample.TAKEN:
+        elif got not in (Sample.TAKEN, Sample.PENDING):
             self.counters["scores_outside_trial"] += 1
 
     def _trial_done(self, source: str, stamp_ns: int) -> bool:

@@ -45,6 +45,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.logging import LoggingSeverity
 
 from localpbo_core.settings import DEFAULT_TIE_THRESHOLD
+from localpbo_core.space import load_space
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
@@ -176,6 +177,12 @@ def run_suite(
                 if time.monotonic() > deadline:
                     raise RuntimeError("recorder did not match the simulator/oracle publishers")
         settings["min_subscribers"] = 2 if record else 1
+        if isinstance(evaluator_node, ParamBridgeNode) and settings.get("space"):
+            refused = True  # a target that cannot take the space: no run, no bag
+            evaluator_node.check_target_now(
+                load_space(settings["space"]), lambda: _spin_unless_stopped(executor, stopping)
+            )
+            refused = False
         if stopping.is_set():
             raise StoppedEarly()
         try:
@@ -265,6 +272,12 @@ def _stop_reason(stop: threading.Event, bag: str | os.PathLike[str]) -> str:
 
 def _return_of(oracle: OracleNode | JudgeNode, candidate_id: int | None) -> float | None:
     return None if candidate_id is None else oracle.episode_return(candidate_id)
+def _spin_unless_stopped(executor: SingleThreadedExecutor, stopping: threading.Event) -> None:
+    if stopping.is_set():
+        raise StoppedEarly()
+    executor.spin_once(timeout_sec=0.01)
+
+
 
 
 def default_bag(out: str | os.PathLike[str], run_id: str) -> Path:
