@@ -82,3 +82,29 @@ def test_gipbo_gated_step_is_kept_when_it_wins_and_improves() -> None:
         ids = {c.theta.tobytes() for c in opt.history.candidates}
         assert all(c.tobytes() in ids for c in opt.centers)
     assert np.mean(gaps) >= 0.5, gaps
+
+
+@pytest.mark.parametrize(
+    ("algorithm", "options"),
+    [
+        ("prefsqp", {"accept_step": "duel"}),
+        ("prefsqp", {"line_search": "duel"}),
+        ("gipbor", {"accept_step": "duel"}),
+    ],
+)
+def test_a_cant_tell_answer_rejects_a_gated_step(algorithm: str, options: dict) -> None:
+    from localpbo_core.optimizers import Indifferent
+
+    opt = make_optimizer(algorithm, 2, seed=1, budget=20, tie_threshold=0.5, **options)
+    trials = 0
+    while not opt.done:
+        ask = opt.ask()
+        trial = opt._trial_active  # type: ignore[attr-defined]
+        if trial:  # the gated step's duels: "can't tell", no win
+            trials += 1
+            opt.tell([Indifferent(d.first, d.second) for d in ask.duels])
+        else:  # the phase's own duels: the older candidate wins
+            opt.tell([Outcome(min(d.first, d.second), max(d.first, d.second)) for d in ask.duels])
+    assert trials >= 2
+    assert all(np.array_equal(c, opt.centers[0]) for c in opt.centers)  # type: ignore[attr-defined]
+    assert len(opt.ties()) >= trials
