@@ -43,7 +43,9 @@ def add_subcommands(subparsers: Any) -> None:
         "one process (private context; nothing leaves the process) and tune until the budget "
         f"is spent. Default: {DEFAULT_ALGORITHM} on {DEFAULT_PROBLEM}, budget initial design "
         "+ 10 d (162 on Swimmer). Prints a summary: recommended candidate, incumbent, duels, "
-        "bag path.",
+        "bag path. Ctrl-C or SIGTERM stops it cleanly (bag complete, a bridged controller's "
+        "parameters restored; --resume continues it) with exit code 130 or 143; 0 done, 1 "
+        "failed, 2 refused.",
     )
     run.add_argument("--task", default=DEFAULT_PROBLEM, help="task, e.g. swimmer, hopper")
     run.add_argument("--algorithm", default=DEFAULT_ALGORITHM, help="e.g. turpbo, sobol")
