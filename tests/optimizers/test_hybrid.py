@@ -259,3 +259,57 @@ def test_validation_names_the_field() -> None:
     ):
         with pytest.raises(ValueError, match=field):
             make_optimizer("hybrid", 3, **kw)
+
+
+def test_resume_replays_recorded_answers_into_the_same_run() -> None:
+    """A resumed run (``localpbo run --resume``) rebuilds the session and re-feeds the recorded
+    answers in order; the hybrid then asks the same candidates, local steps included."""
+    from localpbo_core.session import Answer, Session
+    from localpbo_core.settings import RunSettings
+
+    settings = RunSettings(
+        algorithm="hybrid",
+        problem="hartmann6",
+        seed=2,
+        budget=30,
+        tie_threshold=0.5,
+        indifference=0.05,
+        optimizer_options={"confidence": 0.0},
+    )
+
+    def live(session: Session, answers: list[Answer], stop: int | None = None) -> list[bytes]:
+        oracle = session.oracle()
+        values = {c.id: session.evaluate(c) for c in session.optimizer.history.candidates}
+        thetas = []
+        while not session.done and (stop is None or len(answers) < stop):
+            step = session.ask()
+            for cand in step.candidates:
+                values[cand.id] = session.evaluate(cand)
+                thetas.append(cand.theta.tobytes())
+            for duel in step.duels:
+                first = oracle.judge(duel.duel_id, values[duel.first], values[duel.second])
+                answer = (
+                    Answer.indifferent(duel)
+                    if first is None
+                    else Answer.decisive(duel, duel.first if first else duel.second)
+                )
+                assert session.offer(answer).accepted
+                answers.append(answer)
+        return thetas
+
+    recorded: list[Answer] = []
+    original = Session(settings)
+    full = live(original, recorded)
+    assert "local" in original.optimizer.modes  # type: ignore[attr-defined]
+    # resume: replay the first answers (every ask they answer), then continue live
+    resumed = Session(settings)
+    replayed: list[bytes] = []
+    it = iter(recorded[:17])
+    for answer in it:
+        step = resumed.ask()
+        replayed += [c.theta.tobytes() for c in step.candidates]
+        assert resumed.offer(answer).accepted
+        for _ in range(len(step.duels) - 1):
+            assert resumed.offer(next(it)).accepted
+    rest = live(resumed, list(recorded[:17]))
+    assert replayed + rest == full
