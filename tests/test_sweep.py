@@ -69,8 +69,13 @@ def reference(spec, tmp_path_factory) -> Path:
 
 
 def without_timings(doc: dict) -> dict:
+    """The run's trace: without its timings, and without its ``code`` block, whose commit
+    changes when somebody commits while the test runs (:func:`assert_same_runs` compares
+    the digests)."""
     doc = dict(doc)
     doc.pop("optimizer_seconds")
+    code = doc.pop("code")
+    assert set(code) == {"digest", "algorithm_digest", "commit", "dirty"}
     doc["records"] = [
         {k: v for k, v in r.items() if k != "decision_seconds"} for r in doc["records"]
     ]
@@ -79,9 +84,10 @@ def without_timings(doc: dict) -> dict:
 
 def assert_same_runs(spec, a: Path, b: Path) -> None:
     for plan in spec.runs():
-        assert without_timings(read_run(run_path(a, plan))) == without_timings(
-            read_run(run_path(b, plan))
-        ), plan.run_id
+        one, other = read_run(run_path(a, plan)), read_run(run_path(b, plan))
+        assert without_timings(one) == without_timings(other), plan.run_id
+        digests = ("digest", "algorithm_digest")
+        assert [one["code"][k] for k in digests] == [other["code"][k] for k in digests]
 
 
 def test_ray_sweep_equals_in_process(local_ray, spec, reference, tmp_path) -> None:
