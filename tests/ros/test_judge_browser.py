@@ -197,7 +197,13 @@ def test_whole_run_answered_in_the_browser(browser: Any, tmp_path: Path) -> None
         reply_text(browser, f"Recorded: duel {duel}", "B better")
         answers[duel] = "B better"
 
-    until(lambda: "thank you" in browser.find_element("id", "phase").text.lower(), 20)
+    try:  # long: the first torch import (the run's recommendation) can take 30 s under load
+        until(lambda: "thank you" in browser.find_element("id", "phase").text.lower(), 90)
+    except AssertionError:
+        shown = browser.execute_script("return [$('phase').textContent, JSON.stringify(state)]")
+        run.thread.join(90)
+        ended = run.result.get("summary") or run.result.get("error")
+        raise AssertionError(f"the page never said thank you: {shown[0]}; run: {ended}") from None
     history = browser.find_elements("css selector", "#history tbody tr")
     assert len(history) == 5
     summary = run.finish()
