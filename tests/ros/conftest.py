@@ -1,5 +1,6 @@
 """Headless rclpy fixtures: a private Context per test, a SingleThreadedExecutor driven from the
-test thread, discovery range OFF so nothing leaves the process."""
+test thread, discovery range OFF so nothing leaves the process, and the host-only Fast DDS
+profile so its sockets are bound to 127.0.0.1."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from typing import Any
 
 import pytest
 import rclpy
+from localpbo_ros.dds import PROFILE_FILE
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -85,6 +87,9 @@ class Harness:
 
 @pytest.fixture
 def ros(monkeypatch: pytest.MonkeyPatch) -> Any:
+    # what a one-process localpbo run uses: the host-only profile (sockets on 127.0.0.1) with
+    # discovery OFF; Fast DDS reads the profile at the process's first participant
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", str(PROFILE_FILE))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
     ctx = Context()
     rclpy.init(context=ctx)
