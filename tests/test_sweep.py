@@ -252,7 +252,7 @@ def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     assert 1 <= len(finished) < 6 and "left" in stdout
     for path in finished:
         assert read_run(path)["run"]["seed"] in range(6)
-    again = subprocess.run(_sweep_cmd(out), capture_output=True, text=True, timeout=300)
+    again = subprocess.run(_sweep_cmd(out), capture_output=True, text=True, timeout=900)
     assert again.returncode == 0, again.stderr
     assert f"{len(finished)} already stored" in again.stdout
     assert len(list((out / "runs").glob("*.json.gz"))) == 6
