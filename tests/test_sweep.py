@@ -233,6 +233,7 @@ def _left_behind(proc: subprocess.Popen[str], folder: Path, within_s: float) -> 
         time.sleep(0.2)
 
 
+@pytest.mark.timeout(1500)  # two sweeps of six TuRPBO runs on a machine that may be loaded
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     """A real ``localpbo sweep`` process: the signal stops it within seconds, exit 130, the
