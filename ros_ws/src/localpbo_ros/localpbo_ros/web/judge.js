@@ -159,6 +159,7 @@ function render() {
   else if (key === shownKey && $("params").dataset.complete !== "yes" && d.a.theta && d.b.theta) {
     renderParams(run, d);
   }
+  if (key === shownKey && run.simulated) maybeLoad(d, key);
   if (key === shownKey) {
     for (const side of ["a", "b"]) {
       const s = d[side];
@@ -203,14 +204,26 @@ function newDuel(run, d, key) {
     text($("note-" + side), "");
   }
   $("answer-note").value = "";
+  loading = { key: "", tries: 0 };
   if (run.simulated) {
-    loadPair(d.a.id, d.b.id, key);
+    maybeLoad(d, key);
   } else {
     replay.a = replay.b = null;
     for (const side of ["a", "b"]) $("canvas-" + side).hidden = true;
     $("player").hidden = true;
     text($("rate"), "");
   }
+}
+
+// The episodes load once the judge knows both candidates (a duel request may come before
+// its candidates), and again if a load failed (at most 3 times per duel).
+let loading = { key: "", tries: 0 };
+function maybeLoad(d, key) {
+  if (review || !d.a.theta || !d.b.theta) return;
+  if (replay.a && replay.b && replay.a.candidate_id === d.a.id && replay.b.candidate_id === d.b.id) return;
+  if (loading.key === key && (loading.busy || loading.tries >= 3)) return;
+  loading = { key, tries: loading.key === key ? loading.tries + 1 : 1, busy: true };
+  loadPair(d.a.id, d.b.id, key).finally(() => { if (loading.key === key) loading.busy = false; });
 }
 
 // The two episodes load together and start together: the old pair stays on screen (dimmed)
