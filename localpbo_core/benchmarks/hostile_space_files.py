@@ -16,6 +16,7 @@ Run::
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -77,8 +78,13 @@ def files(folder: Path) -> dict[str, Path]:
     return out
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     """Print one row per hostile file."""
+    argparse.ArgumentParser(
+        prog="python -m localpbo_core.benchmarks.hostile_space_files",
+        description="How long a refusal of a hostile space file takes, and how much memory it "
+        "needs (prints one row per file).",
+    ).parse_args(argv)
     print(f"{'file':<26} {'bytes':>10} {'refused in':>11} {'peak MiB':>10}  message")
     with tempfile.TemporaryDirectory() as tmp:
         for label, path in files(Path(tmp)).items():
