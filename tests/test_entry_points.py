@@ -91,7 +91,7 @@ def test_help_prints_usage_and_writes_nothing(module: str, tmp_path: Path) -> No
         env=env,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=300,  # imports take long on a loaded machine
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "usage:" in proc.stdout, proc.stdout + proc.stderr
