@@ -114,6 +114,14 @@ def recorded(bag: Path) -> tuple[dict[int, tuple[float, ...]], list[EpisodeResul
     return thetas, results
 
 
+def scored(bag: Path) -> bool:
+    """Whether the (growing) bag holds an episode result yet."""
+    try:
+        return any(True for _ in read_messages(bag, topics=[EPISODE_RESULT.name]))
+    except Exception:  # not yet a readable file
+        return False
+
+
 def prefix_lengths(theta: tuple[float, ...], score: float, n: int) -> list[int]:
     """The k ≤ n for which minus the mean cost of the first k steps is ``score`` exactly
     (to rounding)."""
@@ -161,7 +169,7 @@ def test_every_score_is_its_trials_own_under_load(tmp_path: Path, load: None, mo
         assert res.episode_return is not None
         ks = prefix_lengths(thetas[cid], res.episode_return, 4 * STEPS)
         if mode == "duration":
-            assert len(ks) == 1 and ks[0] >= 10, (cid, ks)
+            assert len(ks) == 1, (cid, ks)  # a prefix from the reset (short when starved)
         else:
             assert ks == [STEPS], (cid, ks, res.episode_return)
 
@@ -180,11 +188,13 @@ def test_a_target_killed_mid_trial_never_gives_ok(tmp_path: Path, load: None) ->
     cmd = [
         LOCALPBO, "run", "--space", str(space), "--budget", "200", "--seed", "2",
         "--run-id", "kill", "--bag", str(bag), "--bridge", json.dumps(bridge),
-        "--failure-policy", "retry", "--max-retries", "1000", "--no-progress",
+        "--failure-policy", "retry", "--max-retries", "100", "--no-progress",
     ]  # fmt: skip
     runner = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         deadline = time.monotonic() + 900
+        while runner.poll() is None and time.monotonic() < deadline and not scored(bag):
+            time.sleep(0.2)  # the run has started (the target was checked and took a trial)
         while kills < 20 and runner.poll() is None and time.monotonic() < deadline:
             time.sleep(rng.uniform(0.05, 0.6))  # a trial: ~0.25 s of samples + its checks
             controller.kill()
@@ -197,9 +207,9 @@ def test_a_target_killed_mid_trial_never_gives_ok(tmp_path: Path, load: None) ->
         controller.wait()
         runner.send_signal(signal.SIGINT)
         out, _ = runner.communicate(timeout=60)
+    assert kills == 20 and bag.exists(), out
     thetas, results = recorded(bag)
     failed = [r for r in results if r.status.value == "failed"]
-    assert kills == 20, out
     assert len(failed) >= 5, "kills land in trials or their checks"
     ok = [r for r in results if r.status.value == "ok"]
     assert ok, out

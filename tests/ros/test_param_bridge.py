@@ -17,6 +17,7 @@ from localpbo_ros.bridge import (
     ScoreWindow,
     TargetParameter,
     TrialWindow,
+    check_listed,
     check_target,
     target_names,
 )
@@ -436,3 +437,23 @@ def test_silence_before_the_first_sample_is_a_stall_later_silence_is_not() -> No
     feed(w, [(1001, 1, 1.0)])
     assert not w.stalled(5000 * MS)  # the target may stop at the end of its episode
     assert w.close() == (1.0, "")
+
+
+def test_the_first_missing_parameter_is_named_from_the_listing() -> None:
+    space = parse_space(
+        {
+            "name": "pid",
+            "parameters": [
+                {"name": "kp", "lower": 0.1, "upper": 1.0},
+                {"name": "ki", "lower": 0.1, "upper": 1.0},
+                {"name": "kf", "lower": 0.1, "upper": 1.0},
+                {"name": "kz", "lower": 0.1, "upper": 1.0},
+            ],
+        }
+    )
+    names = target_names(space, {})
+    check_listed(space, names, {"kp", "ki", "kf", "kz"})  # all there: no refusal
+    with pytest.raises(SettingError) as err:
+        check_listed(space, names, {"kp", "ki", "kd", "use_sim_time"})
+    assert err.value.field == "target.kf"
+    assert "no parameter 'kf'" in err.value.reason and "also missing: kz" in err.value.reason

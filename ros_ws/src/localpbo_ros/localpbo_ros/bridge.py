@@ -60,6 +60,25 @@ class TargetParameter:
     ranges: tuple[tuple[float, float], ...] = ()
 
 
+def check_listed(space: ParameterSpace, names: tuple[str, ...], listed: set[str]) -> None:
+    """Refuse a target that lacks one of the parameters (its listing, before describing:
+    the parameter services answer a description of several names with nothing at all when
+    one of them is missing).
+
+    Raises:
+        SettingError: ``target.<first missing parameter>``, the others missing named too.
+    """
+    missing = [(p, n) for p, n in zip(space.parameters, names, strict=True) if n not in listed]
+    if missing:
+        p, name = missing[0]
+        via = "" if name == p.name else f" (space parameter {p.name!r})"
+        also = [n for _, n in missing[1:]]
+        more = f"; also missing: {', '.join(also)}" if also else ""
+        raise SettingError(
+            f"target.{name}", f"the target node has no parameter {name!r}{via}{more}"
+        )
+
+
 def check_target(
     space: ParameterSpace, names: tuple[str, ...], described: Mapping[str, TargetParameter]
 ) -> None:

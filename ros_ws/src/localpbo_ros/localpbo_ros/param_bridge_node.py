@@ -73,6 +73,7 @@ from localpbo_ros.bridge import (
     Sample,
     TargetParameter,
     TrialWindow,
+    check_listed,
     check_target,
     target_names,
 )
@@ -475,14 +476,10 @@ class ParamBridgeNode(FollowerNode):
                 )
             return
         if len(self._futures) == 1:  # the listing: describe only parameters that exist
-            listed = set(self._futures[0].result().result.names)
-            missing = [n for n in self.targets if n not in listed]
-            if missing:
-                info = {n: TargetParameter(n, n in listed) for n in self.targets}
-                try:
-                    check_target(self.space, self.targets, info)
-                except SettingError as exc:
-                    self._refuse(exc)
+            try:
+                check_listed(self.space, self.targets, set(self._futures[0].result().result.names))
+            except SettingError as exc:
+                self._refuse(exc)
                 return
             self._futures = [
                 self._describe.call_async(DescribeParameters.Request(names=self.targets)),
