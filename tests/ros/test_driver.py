@@ -177,7 +177,7 @@ def _retraction_run(bag: Path | None = None) -> tuple[Driver, list[DuelOutcome],
     settings = RunSettings(
         algorithm="turpbo", problem="hartmann6", seed=3, budget=12, tie_threshold=0.5
     )
-    cfg = make_run_config("undo", settings)
+    cfg = make_run_config("undo", settings, person=True)
     drv = Driver(cfg)
     problem = make_problem("hartmann6")
     writer = BagWriter(bag) if bag is not None else None
@@ -272,6 +272,24 @@ def test_retractions_rebuild_the_same_run_and_spend_no_id_twice() -> None:
     ]
 
 
+def test_only_a_run_a_person_judges_takes_answers_back() -> None:
+    from localpbo_ros.driver import make_run_config
+
+    from localpbo_core.session import Reason
+    from localpbo_core.settings import RunSettings
+
+    settings = RunSettings(algorithm="sobol", problem="hartmann6", seed=1, budget=6)
+    for person, expected in ((False, Reason.RETRACTION_REFUSED), (True, Reason.RETRACTED)):
+        drv = Driver(make_run_config("p", settings, person=person))
+        drv.ask()
+        req = drv.pending_requests()[0]
+        assert drv.offer(DuelOutcome.decisive(req, req.first_id)).accepted
+        verdict = drv.offer(DuelOutcome.retracted(req))
+        assert verdict.reason is expected, verdict
+        if not person:
+            assert "person" in verdict.detail and drv.n_duels == 1
+
+
 def test_a_bag_with_retractions_verifies_and_resumes(tmp_path: Path) -> None:
     from localpbo_ros.bagtools import load_run
     from localpbo_ros.commands import main as cli_main
@@ -292,7 +310,7 @@ def test_a_bag_with_retractions_verifies_and_resumes(tmp_path: Path) -> None:
     stop = tmp_path / "stopped.mcap"
     _copy(bag, stop, keep=last + 1)
     resumed = tmp_path / "resumed.mcap"
-    assert cli_main(["run", "--resume", str(stop), "--bag", str(resumed), "--no-progress"]) == 0
+    _resume_with_a_person(stop, resumed, tmp_path / "judge")
     run = load_run(resumed)
     assert [o.kind.value for o in run.outcomes[: last + 1]] == [
         o.kind.value for o in outcomes[: last + 1]
@@ -301,6 +319,41 @@ def test_a_bag_with_retractions_verifies_and_resumes(tmp_path: Path) -> None:
     assert report.ok and report.candidates_checked == 15, report.format()
     prefix = {c.candidate_id: c.theta for c in load_run(stop).candidates.values()}
     assert {k: run.candidates[k].theta for k in prefix} == prefix
+
+
+def _resume_with_a_person(bag: Path, out: Path, state_dir: Path) -> None:
+    """``run --resume`` of a person's run, the person scripted over the judge's HTTP API
+    (answers ``a`` to every duel)."""
+    import threading
+
+    from localpbo_ros.suite import run_suite
+
+    from . import person
+
+    urls: list[str] = []
+    result: dict[str, object] = {}
+
+    def run() -> None:
+        result["summary"] = run_suite(
+            {},
+            out,
+            resume=bag,
+            judge={"state_dir": str(state_dir)},
+            on_url=urls.append,
+            timeout_s=300,
+        )
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    while not urls and thread.is_alive():
+        thread.join(0.05)
+    duel = person.next_ready(urls[0])
+    while duel is not None:
+        assert person.answer(urls[0], duel, "a")[0] == 200
+        duel = person.next_ready(urls[0], after=duel["duel_id"])
+    thread.join(120)
+    summary = result["summary"]
+    assert getattr(summary, "state", None) == "done", summary
 
 
 def _copy(src: Path, dst: Path, *, keep: int | None = None, skip=None) -> None:  # type: ignore[no-untyped-def]

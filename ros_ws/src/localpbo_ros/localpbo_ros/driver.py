@@ -15,7 +15,8 @@ the offline verification, the resume rebuild and ``localpbo bench`` cannot disag
   pending duel in a background thread (:mod:`localpbo_core.speculation`); the answer that
   arrives adopts its branch, so :meth:`Driver.ask` returns at once — with exactly the work it
   would have computed.
-* A ``retracted`` outcome (a person's undo) takes back the latest accepted answer
+* A ``retracted`` outcome (a person's undo; runs whose config says a person judges) takes
+  back the latest accepted answer
   (:meth:`Session.retract`, up to :data:`UNDO_DEPTH` answers back, one at a time): the run
   returns to its state before that answer, the duel is pending again under its id and the
   duels asked since are withdrawn. The node, ``replay --verify`` and ``run --resume`` all
@@ -82,7 +83,7 @@ DEFAULT_FAILURE_POLICY = "retry"
 DEFAULT_MAX_RETRIES = 2
 UNDO_DEPTH = 8
 """How many of the latest answers a person can take back, one after another (each keeps one
-copy of the optimizer's state)."""
+copy of the optimizer's state); runs without a person keep none."""
 PERSON = "person"
 """``options.oracle.kind`` of a run a person judges (absent: the simulated oracle)."""
 
@@ -270,7 +271,7 @@ class Driver:
         self.session = Session(
             settings_of(config),
             problem if problem is not None else problem_of(config),
-            undo_depth=UNDO_DEPTH,
+            undo_depth=UNDO_DEPTH if judged_by_person(config) else 0,
         )
         self.accepted: list[DuelOutcome] = []
         self.speculated = 0
@@ -411,6 +412,12 @@ class Driver:
         """Take back the answer to ``outcome.duel_id`` (``Reason.RETRACTED``: the duel is
         pending again, duels asked since are withdrawn) or refuse (``RETRACTION_REFUSED``
         with the reason; nothing changes)."""
+        if self.session.undo_depth == 0:
+            return Verdict(
+                Reason.RETRACTION_REFUSED,
+                "only a run a person judges takes answers back (its run config's "
+                'oracle.kind is "person")',
+            )
         last = self.accepted[-1] if self.accepted else None
         if last is not None and last.duel_id == outcome.duel_id:
             if (last.first_id, last.second_id) != (outcome.first_id, outcome.second_id):
