@@ -1,11 +1,12 @@
 """Every score ``param_bridge_node`` records is its trial's own, under load and when the
 target dies.
 
-The target is ``thermal_controller.py``, written as a user would write one (not the shipped
-example): a free-running PID loop that publishes a cost at every step, also between trials
-and after its done message. README's command (``localpbo run --space … --bridge …``) tunes it
-while other processes keep both cores busy, in each scoring mode, and every recorded score
-is compared with the trial's own cost computed offline from the candidate's gains:
+The target is ``localpbo_ros.benchmarks.thermal_controller``, written as a user would write
+one (not the shipped example): a free-running PID loop that publishes a cost at every step,
+also between trials and after its done message. README's command (``localpbo run --space …
+--bridge …``) tunes it while other processes keep both cores busy, in each scoring mode, and
+every recorded score is compared with the trial's own cost computed offline from the
+candidate's gains:
 
 * ``trial_samples`` and ``done_topic``: exactly the mean cost of the first N steps after the
   reset;
@@ -19,99 +20,37 @@ the middle of may be scored ``ok``.
 from __future__ import annotations
 
 import json
-import math
-import os
 import random
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from localpbo_ros.dds import PROFILE_FILE
+from localpbo_ros.benchmarks.bridge_exactness import (
+    BRIDGE,
+    LOCALPBO,
+    MODES,
+    SPACE,
+    busy,
+    environment,
+    is_exact,
+    recorded,
+    run_command,
+    start_controller,
+)
 
-from localpbo_msgs_py import CandidateMsg, EpisodeResult
 from localpbo_msgs_py.bag import read_messages
-from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
-
-from .thermal_controller import trial_costs
-
-HERE = Path(__file__).resolve().parent
-LOCALPBO = str(Path(sys.executable).with_name("localpbo"))
-STEPS = 100
-SPACE = """\
-name: thermal
-value_range: 20.0
-parameters:
-  - {name: kp, lower: 0.1, upper: 50.0, log: true, initial: 1.0}
-  - {name: ki, lower: 0.01, upper: 10.0, log: true, initial: 0.1}
-  - {name: kd, lower: 0.0, upper: 2.0, initial: 0.1}
-"""
-BRIDGE = {
-    "target_node": "/thermal",
-    "score_topic": "/thermal/cost",
-    "score_kind": "cost",
-    "score_reduce": "mean",
-    "reset_service": "/thermal/reset",
-}
-MODES = {
-    "samples": {"trial_samples": STEPS, "trial_duration_s": 30.0},
-    "done": {"done_topic": "/thermal/done", "trial_duration_s": 30.0},
-    "duration": {"trial_duration_s": 0.3},
-}
-
-
-def environment(domain: int) -> dict[str, str]:
-    """A user's shell on this host: the DDS set-up docs/controllers.md gives."""
-    skip = ("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALPBO_DDS_OPEN", "ROS_LOCALHOST_ONLY")
-    env = {k: v for k, v in os.environ.items() if k not in skip}
-    env["ROS_DOMAIN_ID"] = str(domain)
-    env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(PROFILE_FILE)
-    return env
-
-
-def start_controller(env: dict[str, str]) -> subprocess.Popen[str]:
-    proc = subprocess.Popen(
-        [sys.executable, str(HERE / "thermal_controller.py"), "--ros-args", "-p", "rate_hz:=400.0"],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    assert proc.stdout is not None
-    assert "up" in proc.stdout.readline()
-    return proc
+from localpbo_msgs_py.topics import EPISODE_RESULT
 
 
 @pytest.fixture
 def load() -> Iterator[None]:
     """Four busy processes: both cores loaded by others for the whole test."""
-    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(4)]
-    try:
+    with busy(4):
         yield
-    finally:
-        for p in busy:
-            p.kill()
-            p.wait()
-
-
-def recorded(bag: Path) -> tuple[dict[int, tuple[float, ...]], list[EpisodeResult]]:
-    """Candidates (gains) and every episode result of a bag."""
-    thetas: dict[int, tuple[float, ...]] = {}
-    results: list[EpisodeResult] = []
-    for rec in read_messages(bag, topics=[CANDIDATE.name, EPISODE_RESULT.name]):
-        if rec.topic == CANDIDATE.name:
-            cand = CandidateMsg.decode(rec.message)
-            assert isinstance(cand, CandidateMsg)
-            thetas[cand.candidate_id] = cand.theta
-        else:
-            res = EpisodeResult.decode(rec.message)
-            assert isinstance(res, EpisodeResult)
-            results.append(res)
-    return thetas, results
 
 
 def scored(bag: Path) -> bool:
@@ -122,29 +61,13 @@ def scored(bag: Path) -> bool:
         return False
 
 
-def prefix_lengths(theta: tuple[float, ...], score: float, n: int) -> list[int]:
-    """The k ≤ n for which minus the mean cost of the first k steps is ``score`` exactly
-    (to rounding)."""
-    costs = trial_costs(*theta, n)
-    out, total = [], 0.0
-    for k, c in enumerate(costs, 1):
-        total += c
-        if math.isclose(-total / k, score, rel_tol=1e-12, abs_tol=1e-12):
-            out.append(k)
-    return out
-
-
-def run(tmp_path: Path, env: dict[str, str], mode: str, budget: int, **extra: Any) -> Path:
+def run(tmp_path: Path, env: dict[str, str], mode: str, budget: int) -> Path:
     space = tmp_path / "thermal.yaml"
     space.write_text(SPACE)
     bag = tmp_path / f"{mode}.mcap"
-    bridge = {**BRIDGE, **MODES[mode], **extra}
-    cmd = [
-        LOCALPBO, "run", "--space", str(space),
-        "--budget", str(budget), "--seed", "1", "--run-id", mode, "--bag", str(bag),
-        "--bridge", json.dumps(bridge), "--max-retries", "5",
-    ]  # fmt: skip
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        run_command(space, bag, mode, budget), env=env, capture_output=True, text=True, timeout=600
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     return bag
 
@@ -167,11 +90,7 @@ def test_every_score_is_its_trials_own_under_load(tmp_path: Path, load: None, mo
             assert "no score sample for" in res.error, (cid, res.error)
             continue
         assert res.episode_return is not None
-        ks = prefix_lengths(thetas[cid], res.episode_return, 4 * STEPS)
-        if mode == "duration":
-            assert len(ks) == 1, (cid, ks)  # a prefix from the reset (short when starved)
-        else:
-            assert ks == [STEPS], (cid, ks, res.episode_return)
+        assert is_exact(mode, thetas[cid], res.episode_return), (cid, res.episode_return)
 
 
 def test_a_target_killed_mid_trial_never_gives_ok(tmp_path: Path, load: None) -> None:
@@ -215,8 +134,7 @@ def test_a_target_killed_mid_trial_never_gives_ok(tmp_path: Path, load: None) ->
     assert ok, out
     for res in ok:
         assert res.episode_return is not None
-        ks = prefix_lengths(thetas[res.candidate_id], res.episode_return, 4 * STEPS)
-        assert ks == [STEPS], res.candidate_id
+        assert is_exact("done", thetas[res.candidate_id], res.episode_return), res.candidate_id
 
 
 def refused_run(tmp_path: Path, env: dict[str, str], space: str, **bridge: Any) -> Any:
