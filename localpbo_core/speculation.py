@@ -104,7 +104,7 @@ def predicted(session: Session) -> tuple[float, ...] | None:
             p_second = float(surrogate.preference_probability(b, a))
             tie = getattr(surrogate, "tie_probability", None)
             p_tie = 0.0 if tie is None else float(tie(a, b))
-    except (AttributeError, RuntimeError, ValueError):  # a surrogate without these queries
+    except (AttributeError, RuntimeError, TypeError, ValueError):  # a surrogate that cannot say
         return None
     return (p_first, p_second, p_tie)
 
