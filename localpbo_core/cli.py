@@ -3,122 +3,42 @@
 node package.
 
 ``bench`` drives one :class:`~localpbo_core.session.Session` per (algorithm, seed) in-process
-(:func:`localpbo_core.loop.run_session`) and writes ``results.csv`` (one row per evaluation,
-columns ``RESULT_COLUMNS``), ``summary.csv``, ``best_seen.png`` and one ``runs/*.json`` per run
-(the candidates, values and answers it exchanged); ``demo`` is a short in-process comparison
+and writes its outputs (:mod:`localpbo_core.bench`); ``demo`` is a short in-process comparison
 on the small MuJoCo task (Swimmer, 16-D linear policy), TuRPBO against Sobol.
 
 Nothing here imports ROS: the ROS subcommands' parsers are added from
-``localpbo_ros.commands``, whose module imports rclpy only inside the chosen command.
+``localpbo_ros.commands``, imported inside :func:`_add_ros_commands` (that module imports
+rclpy only inside the chosen command). No module imports this one: what the CLI shares with
+sweeps, specs, reports and the ROS commands lives below it (:mod:`localpbo_core.arguments`,
+:mod:`localpbo_core.run_documents`, :mod:`localpbo_core.bench`).
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
-import csv
 import importlib.util
-import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from localpbo_core.loop import RESULT_COLUMNS, EvaluationRecord, RunTrace, run_session
-from localpbo_core.optimizers.registry import available_optimizers, optimizer_options
+from localpbo_core.arguments import (
+    add_report_command,
+    flag_of,
+    json_object,
+    parse_options,
+    parse_seeds,
+)
+from localpbo_core.bench import bench, format_table, summarize
+from localpbo_core.optimizers.registry import available_optimizers
 from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
     DEFAULT_TIE_THRESHOLD,
-    RunSettings,
     SettingError,
 )
 
 DEMO_PROBLEM = "swimmer"
 DEMO_BUDGET = 40
-
-FLAGS = {
-    "problem": "--problem",
-    "algorithm": "--algorithm",
-    "seed": "--seeds",
-    "budget": "--budget",
-    "initial_design": "--initial-design",
-    "noise_fraction": "--noise",
-    "tie_threshold": "--tie-threshold",
-    "indifference": "--indifference",
-    "optimizer_options": "--option",
-    "problem_options": "--problem",
-}
-"""The command-line flag of each run setting (for error messages)."""
-
-
-def flag_of(field: str) -> str:
-    """The flag that sets ``field`` (a :class:`SettingError` field), e.g. ``--option``."""
-    head, _, rest = field.partition(".")
-    flag = FLAGS.get(head, head)
-    return f"{flag} {rest}" if rest else flag
-
-
-def parse_seeds(text: str) -> list[int]:
-    """Seeds from ``"0,1,2"``, ``"0-4"`` or a mix (``"0-2,7"``); all must be >= 0."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        if "-" in part[1:]:
-            lo, hi = part.split("-", 1)
-            seeds.extend(range(int(lo), int(hi) + 1))
-        else:
-            seeds.append(int(part))
-    if not seeds or any(s < 0 for s in seeds):
-        raise ValueError("--seeds: expected non-negative integers such as 0,1,2 or 0-4")
-    if len(set(seeds)) != len(seeds):
-        raise ValueError("--seeds: repeated seed")
-    return seeds
-
-
-def _parse_value(text: str) -> object:
-    try:
-        return ast.literal_eval(text)
-    except (ValueError, SyntaxError):
-        return text
-
-
-def _parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, dict[str, object]]:
-    """``key=value`` (every algorithm that accepts ``key``) or ``alg.key=value``."""
-    per_alg: dict[str, dict[str, object]] = {a: {} for a in algorithms}
-    for item in items:
-        if "=" not in item:
-            raise ValueError(f"--option: expected key=value, got {item!r}")
-        key, value = item.split("=", 1)
-        key = key.strip()
-        parsed = _parse_value(value.strip())
-        targets = list(algorithms)
-        if "." in key:
-            alg, key = key.split(".", 1)
-            if alg not in algorithms:
-                raise ValueError(f"--option {item!r}: algorithm {alg!r} is not in --algorithm")
-            targets = [alg]
-        accepted = [a for a in targets if key in optimizer_options(a)]
-        if not accepted:
-            raise ValueError(f"--option {key!r}: not an option of {', '.join(targets)}")
-        for a in accepted:
-            per_alg[a][key] = parsed
-    return per_alg
-
-
-def json_object(text: str) -> dict[str, object]:
-    """An argparse type: a JSON object given on the command line."""
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"not JSON: {exc}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError("must be a JSON object, e.g. '{\"episode_steps\": 200}'")
-    return value
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -255,25 +175,7 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
     )
     sweep.add_argument("--dry-run", action="store_true", help="list the runs and their state")
     sweep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    report = sub.add_parser(
-        "report",
-        help="figures and tables (with paired Wilcoxon tests) from stored runs",
-        description=(
-            "Read stored runs (sweep or bench output folders, or run files) and write "
-            "Markdown tables and PNG figures into OUT (byte-identical on the same input)."
-        ),
-    )
-    report.add_argument("results", nargs="+", help="result folders or run files")
-    report.add_argument("--out", required=True, help="output folder (created if needed)")
-    report.add_argument(
-        "--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)"
-    )
-    report.add_argument("--name", default="report.md", help="report file name in OUT")
-    report.add_argument(
-        "--figures", default=".", help="folder for the PNGs, relative to OUT (default OUT)"
-    )
-    report.add_argument("--notes", default=None, help="Markdown file appended to the report")
-    report.add_argument("--title", default="localpbo report", help="the report's heading")
+    add_report_command(sub)
 
 
 def _add_ros_commands(sub: argparse._SubParsersAction) -> None:
@@ -297,216 +199,6 @@ def _add_threads(parser: argparse.ArgumentParser) -> None:
         help="torch and BLAS threads (default: 1 unless OMP_NUM_THREADS, MKL_NUM_THREADS or "
         "OPENBLAS_NUM_THREADS is set; one thread is fastest for the surrogate's small matrices)",
     )
-
-
-def bench(
-    problem_name: str,
-    algorithms: Sequence[str],
-    seeds: Sequence[int],
-    out: Path,
-    budget: int | None = None,
-    initial_design: int = DEFAULT_INITIAL_DESIGN,
-    noise: float = DEFAULT_NOISE_FRACTION,
-    options: dict[str, dict[str, object]] | None = None,
-    progress: bool = True,
-    problem_options: dict[str, object] | None = None,
-    tie_threshold: float = 0.0,
-    indifference: float = 0.0,
-) -> list[EvaluationRecord]:
-    """Run every (algorithm, seed), write the outputs into ``out`` and return all records.
-
-    Every configuration is validated (problem, algorithms, options, budget, noise) before
-    any run starts.
-
-    Raises:
-        SettingError: naming the refused setting.
-    """
-    from tqdm import tqdm
-
-    from localpbo_core.session import Session, build_problem
-
-    options = options or {a: {} for a in algorithms}
-    plans = [
-        RunSettings(
-            algorithm=alg,
-            problem=problem_name,
-            seed=seed,
-            budget=budget,
-            initial_design=initial_design,
-            noise_fraction=noise,
-            tie_threshold=tie_threshold,
-            indifference=indifference,
-            optimizer_options=options.get(alg, {}),
-            problem_options=problem_options or {},
-        )
-        for alg in algorithms
-        for seed in seeds
-    ]
-    problem = build_problem(plans[0])
-    budgets = [Session(p, problem).budget for p in plans if p.seed == seeds[0]]  # fail at start
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "runs").mkdir(exist_ok=True)
-    records: list[EvaluationRecord] = []
-    total = sum(budgets) * len(seeds)
-    with tqdm(total=total, disable=not progress, unit="eval", dynamic_ncols=True) as bar:
-        for plan in plans:
-            bar.set_description(f"{plan.algorithm} seed {plan.seed}")
-            trace = run_session(Session(plan, problem), on_evaluation=lambda _r: bar.update(1))
-            records.extend(trace.records)
-            write_trace(plan, trace, out / "runs" / run_file_name(plan))
-            write_results(records, out / "results.csv")
-    summary = summarize(records)
-    write_summary(summary, out / "summary.csv")
-    plot_best_seen(records, out / "best_seen.png")
-    return records
-
-
-def run_file_name(settings: RunSettings) -> str:
-    """``<problem>_<algorithm>_seed<seed>.json``: one file per finished run."""
-    return f"{settings.problem}_{settings.algorithm}_seed{settings.seed}.json"
-
-
-def trace_document(settings: RunSettings, trace: RunTrace) -> dict[str, Any]:
-    """One run as a JSON-ready document (schema ``localpbo/run/v1``): its settings, every
-    candidate (native units and value), every accepted answer and every evaluation record."""
-    return {
-        "schema": "localpbo/run/v1",
-        "settings": settings_document(settings),
-        "candidates": [
-            {"id": cid, "native": list(trace.native[cid]), "value": trace.values[cid]}
-            for cid in sorted(trace.native)
-        ],
-        "answers": [
-            {
-                "duel_id": a.duel_id,
-                "first": a.first,
-                "second": a.second,
-                "kind": a.kind.value,
-                "winner": a.winner,
-            }
-            for a in trace.answers
-        ],
-        "records": [dict(zip(RESULT_COLUMNS, r.as_row(), strict=True)) for r in trace.records],
-    }
-
-
-def settings_document(settings: RunSettings) -> dict[str, Any]:
-    """The fields of ``settings`` as stored with a run (JSON types: tuples become lists).
-    ``tie_threshold`` and ``indifference`` appear only when > 0, so documents of runs without
-    "can't tell" answers are unchanged."""
-    doc: dict[str, Any] = {
-        "algorithm": settings.algorithm,
-        "problem": settings.problem,
-        "seed": settings.seed,
-        "budget": settings.budget,
-        "initial_design": settings.initial_design,
-        "noise_fraction": settings.noise_fraction,
-        "optimizer_options": dict(settings.optimizer_options),
-        "problem_options": dict(settings.problem_options),
-    }
-    if settings.tie_threshold > 0 or settings.indifference > 0:
-        doc["tie_threshold"] = settings.tie_threshold
-        doc["indifference"] = settings.indifference
-    return dict(json.loads(json.dumps(doc, default=str)))
-
-
-def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
-    """One run as JSON (:func:`trace_document`). Floats are written exactly (JSON's
-    shortest round-trip representation)."""
-    path.write_text(json.dumps(trace_document(settings, trace), default=str) + "\n")
-
-
-def write_results(records: Sequence[EvaluationRecord], path: Path) -> None:
-    """``results.csv``: one row per evaluation."""
-    with path.open("w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(RESULT_COLUMNS)
-        for r in records:
-            writer.writerow(r.as_row())
-
-
-def summarize(records: Sequence[EvaluationRecord]) -> list[dict[str, object]]:
-    """Per algorithm: mean ± std over runs of final best-seen, final cumulative and the
-    optimizer's total seconds per run (sum of ``decision_seconds``)."""
-    runs: dict[tuple[str, int], list[EvaluationRecord]] = {}
-    for r in records:
-        runs.setdefault((r.algorithm, r.seed), []).append(r)
-    rows = []
-    for alg in dict.fromkeys(r.algorithm for r in records):
-        finals = [v for (a, _), v in runs.items() if a == alg]
-        best = np.array([v[-1].best_seen for v in finals])
-        cum = np.array([v[-1].cumulative for v in finals])
-        secs = np.array([sum(x.decision_seconds for x in v) for v in finals])
-        rows.append(
-            {
-                "problem": finals[0][0].problem,
-                "algorithm": alg,
-                "runs": len(finals),
-                "evaluations": len(finals[0]),
-                "best_seen_mean": best.mean(),
-                "best_seen_std": best.std(ddof=1) if len(best) > 1 else 0.0,
-                "cumulative_mean": cum.mean(),
-                "cumulative_std": cum.std(ddof=1) if len(cum) > 1 else 0.0,
-                "optimizer_seconds_mean": secs.mean(),
-                "optimizer_seconds_std": secs.std(ddof=1) if len(secs) > 1 else 0.0,
-            }
-        )
-    return rows
-
-
-def write_summary(rows: Sequence[dict[str, object]], path: Path) -> None:
-    """``summary.csv``: the rows of :func:`summarize`."""
-    with path.open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
-def format_table(rows: Sequence[dict[str, object]]) -> str:
-    """The final table printed by ``bench``."""
-    lines = [
-        f"{'algorithm':<12} {'runs':>4} {'best_seen (mean ± std)':>26} "
-        f"{'cumulative (mean ± std)':>28} {'optimizer s/run':>18}"
-    ]
-    for r in rows:
-        lines.append(
-            f"{r['algorithm']:<12} {r['runs']:>4} "
-            f"{r['best_seen_mean']:>13.4g} ± {r['best_seen_std']:<10.3g} "
-            f"{r['cumulative_mean']:>15.5g} ± {r['cumulative_std']:<10.4g} "
-            f"{r['optimizer_seconds_mean']:>9.3g} ± {r['optimizer_seconds_std']:<6.2g}"
-        )
-    return "\n".join(lines)
-
-
-def plot_best_seen(records: Sequence[EvaluationRecord], path: Path) -> None:
-    """Mean ± std of best-seen and cumulative vs evaluation, one line per algorithm."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for alg in dict.fromkeys(r.algorithm for r in records):
-        by_seed: dict[int, list[EvaluationRecord]] = {}
-        for r in records:
-            if r.algorithm == alg:
-                by_seed.setdefault(r.seed, []).append(r)
-        n = min(len(v) for v in by_seed.values())
-        x = np.arange(1, n + 1)
-        for ax, key in zip(axes, ("best_seen", "cumulative"), strict=True):
-            y = np.array([[getattr(r, key) for r in v[:n]] for v in by_seed.values()])
-            m, s = y.mean(0), y.std(0)
-            ax.plot(x, m, label=alg)
-            ax.fill_between(x, m - s, m + s, alpha=0.2)
-    title = records[0].problem if records else ""
-    for ax, key in zip(axes, ("best-seen f_true", "cumulative f_true"), strict=True):
-        ax.set_xlabel("evaluation")
-        ax.set_ylabel(key)
-        ax.set_title(f"{title}: {key} (mean ± std over seeds)")
-        ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -563,7 +255,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             seeds = parse_seeds(args.seeds)
             problem = args.problem
             budget, initial_design, noise = args.budget, args.initial_design, args.noise
-            per_alg = _parse_options(args.option, algorithms)
+            per_alg = parse_options(args.option, algorithms)
             if args.batch_size is not None:
                 for a in algorithms:
                     per_alg[a]["batch_size"] = args.batch_size

@@ -706,11 +706,12 @@ RESULTS_COMMAND = (
 
 
 def results_page_args(root: Path, out: Path | None = None) -> Any:
-    """:data:`RESULTS_COMMAND` parsed by ``localpbo``'s own parser, its paths taken relative to
-    ``root``; ``--out`` replaced by ``out`` if given (to compare with the committed page)."""
-    from localpbo_core.cli import _build_parser
+    """:data:`RESULTS_COMMAND` parsed by ``localpbo report``'s own parser, its paths taken
+    relative to ``root``; ``--out`` replaced by ``out`` if given (to compare with the committed
+    page)."""
+    from localpbo_core.arguments import report_parser
 
-    args = _build_parser().parse_args(list(RESULTS_COMMAND[1:]))
+    args = report_parser().parse_args(list(RESULTS_COMMAND[1:]))
     args.results = [str(root / r) for r in args.results]
     args.out = str(root / args.out if out is None else out)
     args.notes = str(root / args.notes)

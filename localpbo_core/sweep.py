@@ -81,8 +81,8 @@ def run_path(out: Path, plan: PlannedRun) -> Path:
 
 def execute_run(plan: PlannedRun) -> dict[str, Any]:
     """Run ``plan`` in this process and return its stored document (module docstring)."""
-    from localpbo_core.cli import trace_document
     from localpbo_core.loop import run_session
+    from localpbo_core.run_documents import trace_document
     from localpbo_core.session import Session
 
     trace = run_session(Session(plan.settings))
@@ -121,7 +121,7 @@ def is_finished(out: Path, plan: PlannedRun) -> bool:
     Raises:
         SettingError: the file holds a run with other settings (field ``--out``).
     """
-    from localpbo_core.cli import settings_document
+    from localpbo_core.run_documents import settings_document
 
     path = run_path(out, plan)
     if not path.exists():
@@ -201,7 +201,7 @@ class ReuseIndex:
         """The first stored run (folders in order; within a folder ``plan``'s own run id
         first, then the others by name) whose effective settings are ``plan``'s; None if
         there is none."""
-        from localpbo_core.cli import settings_document
+        from localpbo_core.run_documents import settings_document
 
         wanted_doc = settings_document(plan.settings)
         wanted = effective_settings(wanted_doc)
@@ -227,7 +227,7 @@ def reused_document(source: Path, plan: PlannedRun) -> dict[str, Any]:
     """The stored run at ``source`` as ``plan``'s: its ``settings`` as ``plan`` spells them
     (the same effective settings, :func:`effective_settings`) and its ``run`` block replaced
     by ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source)."""
-    from localpbo_core.cli import settings_document
+    from localpbo_core.run_documents import settings_document
 
     doc = read_run(source)
     doc["settings"] = settings_document(plan.settings)
@@ -509,8 +509,8 @@ def format_dry_run(
 
 
 def main_sweep(args: Any) -> int:
-    """The ``localpbo sweep`` command (arguments from :mod:`localpbo_core.cli`)."""
-    from localpbo_core.cli import parse_seeds
+    """The ``localpbo sweep`` command (its arguments: :mod:`localpbo_core.cli`)."""
+    from localpbo_core.arguments import parse_seeds
     from localpbo_core.experiments import load_spec
 
     def labels(text: str | None) -> list[str] | None:

@@ -12,9 +12,10 @@ from pathlib import Path
 import pytest
 
 from localpbo_core import ray_cleanup
-from localpbo_core.cli import main, settings_document
+from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
 from localpbo_core.report import write_report
+from localpbo_core.run_documents import settings_document
 from localpbo_core.settings import SettingError
 from localpbo_core.sweep import (
     LOOPBACK_ONLY_ENV,
@@ -133,7 +134,7 @@ def test_stored_run_with_other_settings_is_refused(spec, reference, tmp_path) ->
     from localpbo_core.sweep import write_run
 
     doc = read_run(run_path(reference, plan))
-    from localpbo_core.cli import settings_document
+    from localpbo_core.run_documents import settings_document
 
     doc["settings"] = settings_document(other)
     write_run(run_path(tmp_path, plan), doc)

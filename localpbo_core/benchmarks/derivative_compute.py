@@ -39,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         import torch
 
         torch.set_num_threads(args.torch_threads)
-    from localpbo_core.cli import bench
+    from localpbo_core.bench import bench
 
     seeds = [int(s) for s in args.seeds.split(",")]
     algorithms = args.algorithms.split(",")

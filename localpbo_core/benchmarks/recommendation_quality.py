@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from localpbo_core.cli import parse_seeds
+from localpbo_core.arguments import parse_seeds
 from localpbo_core.loop import run_session
 from localpbo_core.problems import make_problem
 from localpbo_core.session import RunSettings, Session

@@ -40,7 +40,7 @@ import numpy as np
 import torch
 from scipy.stats import wilcoxon
 
-from localpbo_core.cli import parse_seeds
+from localpbo_core.arguments import parse_seeds
 from localpbo_core.loop import run_session
 from localpbo_core.session import AnswerKind, RunSettings, Session
 

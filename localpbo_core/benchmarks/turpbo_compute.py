@@ -36,7 +36,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         import torch
 
         torch.set_num_threads(args.torch_threads)
-    from localpbo_core.cli import bench
+    from localpbo_core.bench import bench
 
     initial, budget = 5 * DIM, 5 * DIM + 10 * DIM
     t0 = time.perf_counter()

@@ -479,7 +479,7 @@ def _seeds(value: object) -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
         value = [value]
     if isinstance(value, str):
-        from localpbo_core.cli import parse_seeds
+        from localpbo_core.arguments import parse_seeds
 
         try:
             seeds = parse_seeds(value)

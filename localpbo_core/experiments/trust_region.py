@@ -137,7 +137,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the selected TuRPBO runs of a spec and print the trust-region table."""
     from tqdm import tqdm
 
-    from localpbo_core.cli import parse_seeds
+    from localpbo_core.arguments import parse_seeds
 
     ap = argparse.ArgumentParser(prog="python -m localpbo_core.experiments.trust_region")
     ap.add_argument("spec", help="spec file or bundled spec name")

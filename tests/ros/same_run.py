@@ -10,7 +10,8 @@ from typing import Any
 
 from localpbo_ros.bagtools import load_run
 
-from localpbo_core.cli import bench, run_file_name
+from localpbo_core.bench import bench
+from localpbo_core.run_documents import run_file_name
 from localpbo_core.settings import RunSettings
 from localpbo_msgs_py import EpisodeResult
 from localpbo_msgs_py.bag import read_messages

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from localpbo_core.cli import json_object
+from localpbo_core.arguments import json_object
 from localpbo_core.settings import (
     DEFAULT_ALGORITHM,
     DEFAULT_INITIAL_DESIGN,
