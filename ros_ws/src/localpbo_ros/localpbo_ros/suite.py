@@ -272,14 +272,14 @@ def _stop_reason(stop: threading.Event, bag: str | os.PathLike[str]) -> str:
     return f"{name}; continue it with: localpbo run --resume {bag}"
 
 
-def _return_of(oracle: OracleNode | JudgeNode, candidate_id: int | None) -> float | None:
-    return None if candidate_id is None else oracle.episode_return(candidate_id)
 def _spin_unless_stopped(executor: SingleThreadedExecutor, stopping: threading.Event) -> None:
     if stopping.is_set():
         raise StoppedEarly()
     executor.spin_once(timeout_sec=0.01)
 
 
+def _return_of(oracle: OracleNode | JudgeNode, candidate_id: int | None) -> float | None:
+    return None if candidate_id is None else oracle.episode_return(candidate_id)
 
 
 def default_bag(out: str | os.PathLike[str], run_id: str) -> Path:
