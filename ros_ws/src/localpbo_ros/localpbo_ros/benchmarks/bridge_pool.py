@@ -232,6 +232,7 @@ def run_layout(workers: int, setup: Setup, out: Path, name: str = "bridge-pool")
         start("oracle", "localpbo_ros.oracle_node"),
     ]
     load0 = os.getloadavg()[0]
+    optimizer: Node | None = None
     try:
         for i in range(workers):
             helpers.append(start(f"pid_{i}", EXAMPLE, *controller_args(i, setup)))
@@ -247,13 +248,14 @@ def run_layout(workers: int, setup: Setup, out: Path, name: str = "bridge-pool")
         try:
             code = optimizer.popen.wait(setup.timeout_s)
         except subprocess.TimeoutExpired:
-            optimizer.stop()
             raise RuntimeError(
                 f"optimizer not done after {setup.timeout_s:g} s:\n{optimizer.text()[-3000:]}"
             ) from None
         if code != 0:
             raise RuntimeError(f"optimizer exited {code}:\n{optimizer.text()[-3000:]}")
     finally:
+        if optimizer is not None:
+            optimizer.stop()  # already gone unless the wait was cut short
         codes = [node.stop() for node in helpers]
     if codes[0] != 0:
         raise RuntimeError(f"recorder exited {codes[0]}:\n{helpers[0].text()[-3000:]}")
