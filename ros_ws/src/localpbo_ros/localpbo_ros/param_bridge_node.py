@@ -44,7 +44,6 @@ bridges, each on its own controller instance, share a run.
 from __future__ import annotations
 
 import time
-from collections import deque
 from typing import Any, NoReturn
 
 from rcl_interfaces.msg import Parameter as ParameterMsg
@@ -66,7 +65,7 @@ from std_srvs.srv import Trigger
 from localpbo_core.space import ParameterSpace
 from localpbo_core.validation import SettingError
 from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig, Status
-from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT, STATUS
+from localpbo_msgs_py.topics import STATUS
 from localpbo_ros.bridge import (
     REDUCERS,
     SCORE_KINDS,
@@ -78,9 +77,8 @@ from localpbo_ros.bridge import (
     target_names,
 )
 from localpbo_ros.driver import space_of
-from localpbo_ros.follower import FollowerNode
+from localpbo_ros.evaluator import EvaluatorNode
 from localpbo_ros.params import Param, ParameterError
-from localpbo_ros.pool import BUSY_INFO, WORKER_INFO, new_worker_id
 
 PARAMS = [
     Param("target_node", "", "Node whose parameters are tuned, e.g. /pid_controller_node."),
@@ -201,7 +199,7 @@ class StampedClient:
         self._impl.destroy_when_not_in_use()
 
 
-class ParamBridgeNode(FollowerNode):
+class ParamBridgeNode(EvaluatorNode):
     """The parameter bridge (see module docstring)."""
 
     def __init__(
@@ -235,10 +233,6 @@ class ParamBridgeNode(FollowerNode):
         self.targets: tuple[str, ...] = ()
         self.originals: dict[str, Any] = {}
         self.applied = False
-        self._queue: deque[CandidateMsg] = deque()
-        self._current: CandidateMsg | None = None
-        self._thetas: dict[int, tuple[float, ...]] = {}
-        self._results: dict[int, EpisodeResult] = {}
         self._futures: list[Any] = []
         self._deadline = 0.0
         self._trial_end_ns = 0
@@ -266,16 +260,8 @@ class ParamBridgeNode(FollowerNode):
                 self.create_service(Trigger, s["done_service"], self._on_done_call)
         except Exception as exc:  # rclpy refuses an invalid topic or service name
             raise ParameterError("score_topic", f"{type(exc).__name__}: {exc}") from None
-        self.worker_id = new_worker_id(self.get_name())
-        self._pub = self.publisher(EPISODE_RESULT)
-        self.subscribe(CANDIDATE, self._on_candidate)
         self.subscribe(STATUS, self._on_status)
         self.create_timer(TICK_S, self._tick)
-
-    def status_info(self) -> dict[str, str]:
-        """The worker id and the candidate on trial (empty when idle)."""
-        busy = "" if self._current is None else str(self._current.candidate_id)
-        return {WORKER_INFO: self.worker_id, BUSY_INFO: busy}
 
     def _srv(self, service: str) -> str:
         return f"{self.target}/{service}"
@@ -400,33 +386,10 @@ class ParamBridgeNode(FollowerNode):
         self.get_logger().info(f"{text} the original parameters of {self.target}")
 
     # ------------------------------------------------------------------ candidates
-    def _on_candidate(self, msg: object) -> None:
-        if self.hold(self._on_candidate, msg):
-            return
-        config = self.config
-        assert config is not None
-        cand = self.candidate_for(msg, self.worker_id)
-        if cand is None:
-            return
-        known = self._thetas.get(cand.candidate_id)
-        if known is not None and known != cand.theta:
-            self.drop("conflicting_candidate", f"candidate {cand.candidate_id} changed θ")
-            return
-        self._thetas[cand.candidate_id] = cand.theta
-        cached = self._results.get(cand.candidate_id)
-        if cached is not None:
-            self.counters["results_repeated"] += 1
-            self._pub.publish(cached.encode())
-        elif self.phase == "refused":
-            self._fail(cand, self.error)
-        elif cand.candidate_id in {c.candidate_id for c in self._queue} or (
-            self._current is not None and self._current.candidate_id == cand.candidate_id
-        ):
-            self.counters["candidates_repeated"] += 1
-        elif len(self._queue) >= self.settings["max_pending"]:
-            self.drop("buffer_full", f"more than {self.settings['max_pending']} trials waiting")
-        else:
-            self._queue.append(cand)
+    def refusal_reason(self) -> str | None:
+        """While the target is refused every candidate fails with the reason (the candidate
+        intake itself is :class:`~localpbo_ros.evaluator.EvaluatorNode`'s)."""
+        return self.error if self.phase == "refused" else None
 
     # ------------------------------------------------------------------ trial machine
     def _tick(self) -> None:
