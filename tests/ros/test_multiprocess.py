@@ -1,5 +1,6 @@
 """The nodes as separate processes (as with ``ros2 run``), DDS kept on this host by the
-executables' defaults (LOCALHOST discovery range + the loopback/SHM Fast DDS profile)."""
+executables' defaults (the loopback/SHM Fast DDS profile): every socket of every node process
+is bound to a loopback address while the run goes on."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import psutil
 from localpbo_ros.bagtools import load_run
 from localpbo_ros.replay import verify
 
@@ -16,19 +18,10 @@ from localpbo_msgs_py.bag import read_messages, summarize
 from localpbo_msgs_py.topics import STATUS
 
 from .processes import host_env, start_node, stop_nodes
-
-
-def tx_packets() -> int:
-    """Packets sent so far on every network interface except loopback."""
-    total = 0
-    for iface in Path("/sys/class/net").iterdir():
-        if iface.name != "lo" and (iface / "statistics/tx_packets").is_file():
-            total += int((iface / "statistics/tx_packets").read_text())
-    return total
+from .test_dds_scope import non_loopback_sockets
 
 
 def test_four_processes_complete_a_run(tmp_path: Path) -> None:
-    sent_before = tx_packets()
     env = host_env(57)
     bag = tmp_path / "mp.mcap"
 
@@ -76,6 +69,10 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
             timeout=120,
         )
         assert opt.returncode == 0, opt.stderr
+        # DDS stayed on this host: no node holds a socket on another address (default Fast
+        # DDS would bind 0.0.0.0 and the host's external addresses)
+        for proc in helpers:
+            assert non_loopback_sockets(psutil.Process(proc.pid)) == []
     finally:
         codes = stop_nodes(helpers)
     assert codes == [0, 0, 0]
@@ -84,6 +81,3 @@ def test_four_processes_complete_a_run(tmp_path: Path) -> None:
     assert run.config.run_id == "mp" and len(run.candidates) == 8
     report = verify(bag)
     assert report.ok, report.format()
-    # DDS stayed on this host: default Fast DDS discovery would multicast on every interface
-    # several times in this window; allow 2 packets of unrelated host chatter
-    assert tx_packets() - sent_before <= 2
