@@ -196,3 +196,15 @@ def _python_namespace() -> dict[str, object]:
 def test_python_block_runs(block: Block) -> None:
     code = re.sub(r"\bbudget=\d+", "budget=12", block.text)
     exec(compile(code, block.id, "exec"), _python_namespace())
+
+
+def test_a_renamed_flag_fails(tmp_path: Path) -> None:
+    """The check itself: a documented command whose flag no longer exists fails the block."""
+    block = Block(
+        "made-up.md",
+        1,
+        "bash",
+        "localpbo bench --problem hartmann6 --algorithm sobol --budgett 8 --out o",
+    )
+    with pytest.raises(AssertionError, match="unrecognized arguments: --budgett"):
+        test_shell_block_runs(block, tmp_path)
