@@ -44,4 +44,4 @@ def test_space_needs_an_evaluator_and_a_valid_file(
         ]
     )
     err = capsys.readouterr().err
-    assert code == 2 and "invalid parameter 'space'" in err and "space.kp.lower" in err
+    assert code == 2 and "--space" in err and "space.kp.lower" in err

@@ -85,6 +85,12 @@ class ThermalController(Node):
 
 
 def main() -> None:
+    if {"-h", "--help"} & set(sys.argv[1:]):
+        print(
+            "usage: python -m localpbo_ros.benchmarks.thermal_controller "
+            "[--ros-args -p rate_hz:=400.0 ...]"
+        )
+        return
     rclpy.init(args=sys.argv)
     node = ThermalController()
     print("thermal controller up", flush=True)
