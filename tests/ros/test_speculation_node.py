@@ -94,7 +94,13 @@ def _judged(tmp_path: Path, name: str, speculate: bool, undo_at: int = -1) -> Pa
             assert person.answer(url, duel, "b")[0] == 200
             code, body = person.undo(url, did)
             assert code == 200, body
-            again = person.next_ready(url)  # the duel is asked again, under its id
+            # the duel is asked again, under its id (the next duel of the taken-back answer
+            # may show until the optimizer's re-request arrives)
+            end = time.monotonic() + 120
+            again = person.next_ready(url)
+            while again is not None and again["duel_id"] != did and time.monotonic() < end:
+                time.sleep(0.05)
+                again = person.next_ready(url)
             assert again is not None and again["duel_id"] == did
             time.sleep(0.3)
         assert person.answer(url, duel, "tie" if n % 3 == 2 else "a")[0] == 200
