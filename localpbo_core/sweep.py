@@ -375,7 +375,7 @@ _SESSION: Path | None = None
 (:mod:`localpbo_core.ray_cleanup`)."""
 
 
-def start_ray(address: str | None, workers: int | None) -> bool:
+def start_ray(address: str | None, workers: int | None, keep_sigterm_handler: bool = False) -> bool:
     """Connect to the Ray cluster at ``address``, or start the embedded one (``workers`` CPUs,
     servers on the loopback address only, no dashboard) unless Ray is already running.
     Returns True if this call started or connected Ray (the caller stops it: :func:`stop_ray`).
@@ -383,7 +383,9 @@ def start_ray(address: str | None, workers: int | None) -> bool:
     The embedded Ray never joins a cluster it finds on this machine (``address="local"``),
     runs in a private temporary folder under a watchdog that stops its processes and removes
     the folder once this process ends, however it ends (:mod:`localpbo_core.ray_cleanup`),
-    and first cleans up after earlier drivers that were killed with their watchdogs."""
+    and first cleans up after earlier drivers that were killed with their watchdogs.
+    ``keep_sigterm_handler``: ``ray.init`` leaves the process's SIGTERM handler as it is
+    (by default it installs its own, which calls ``sys.exit``)."""
     global _SESSION
     if address is None:
         os.environ.setdefault(LOOPBACK_ONLY_ENV, "0")
@@ -400,7 +402,8 @@ def start_ray(address: str | None, workers: int | None) -> bool:
         ray_cleanup.start_watchdog(folder)
         kwargs["num_cpus"] = workers or os.cpu_count() or 1
         kwargs["_temp_dir"] = str(folder)
-    ray.init(address=address or "local", logging_level=logging.ERROR, **kwargs)
+    with _without_ray_sigterm_handler() if keep_sigterm_handler else contextlib.nullcontext():
+        ray.init(address=address or "local", logging_level=logging.ERROR, **kwargs)
     return True
 
 
@@ -426,16 +429,17 @@ def _run_on_ray(
     fail: Callable[[PlannedRun, str], None],
     stop_on_sigterm: bool,
 ) -> None:
-    try:
-        with _sigterm_interrupts(stop_on_sigterm):
-            started = start_ray(address, workers)
-    except (KeyboardInterrupt, SystemExit) as exc:
-        # Ctrl-C, or SIGTERM through the handler ray.init installs first (sys.exit(SIGTERM)),
-        # while Ray starts: stop what has started; the sweep ends as interrupted
-        if isinstance(exc, SystemExit) and not (stop_on_sigterm and exc.code == signal.SIGTERM):
+    with _stops_deferred(stop_on_sigterm) as stopped:
+        try:
+            started = start_ray(address, workers, keep_sigterm_handler=stop_on_sigterm)
+        except (KeyboardInterrupt, SystemExit):
+            stop_ray()  # whatever of Ray had started
             raise
-        stop_ray()
-        raise KeyboardInterrupt from None
+    if stopped:
+        # Ctrl-C or SIGTERM while Ray started: it was let finish starting, now it stops
+        if started:
+            stop_ray()
+        raise KeyboardInterrupt
     import ray
 
     try:
@@ -560,6 +564,51 @@ def main_sweep(args: Any) -> int:
 
 EXIT_INTERRUPTED = 130
 """Exit status of an interrupted sweep (128 + SIGINT, as shells report Ctrl-C)."""
+
+
+@contextlib.contextmanager
+def _stops_deferred(enabled: bool) -> Iterator[list[int]]:
+    """If ``enabled`` (and in the main thread), SIGINT and SIGTERM are only noted in the block
+    (the list it yields gets their numbers) and the caller stops after it.
+
+    Made for ``ray.init``: an exception raised by a signal handler while Ray starts lands
+    wherever the interpreter is, and there it may be swallowed (in a fork callback Python
+    prints "Exception ignored" and goes on, so the sweep would run to the end) or leave Ray's
+    driver half connected (its C++ core then aborts the process at exit); for the same reason
+    the caller keeps Ray's own SIGTERM handler (``sys.exit``) out of ``ray.init``
+    (:func:`start_ray`). The handlers from before are restored after the block."""
+    noted: list[int] = []
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield noted
+        return
+
+    def note(signum: int, frame: Any) -> None:
+        noted.append(signum)
+
+    previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield noted
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def _without_ray_sigterm_handler() -> Iterator[None]:
+    """``ray.init`` does not install its SIGTERM handler in the block (it calls
+    ``ray._private.utils.set_sigterm_handler``, replaced here by a no-op; a Ray without that
+    function installs its handler as before)."""
+    import ray._private.utils as ray_utils
+
+    original = getattr(ray_utils, "set_sigterm_handler", None)
+    if original is None:
+        yield
+        return
+    ray_utils.set_sigterm_handler = lambda handler: None
+    try:
+        yield
+    finally:
+        ray_utils.set_sigterm_handler = original
 
 
 @contextlib.contextmanager

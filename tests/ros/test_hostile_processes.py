@@ -87,6 +87,7 @@ def test_a_flooded_run_completes_with_its_whole_record(tmp_path: Path, capsys) -
         )
         assert opt.returncode == 0, opt.stderr
         time.sleep(1.5)  # the helpers' last status heartbeats
+        flooding_to_the_end = flooder.poll() is None  # its 600 s are not over
     finally:
         flooder.send_signal(signal.SIGINT)
         out, err = flooder.communicate(timeout=30)
@@ -94,7 +95,9 @@ def test_a_flooded_run_completes_with_its_whole_record(tmp_path: Path, capsys) -
     assert flooder.returncode == 0, err
     assert codes == [0, 0, 0]
     sent = int(out.split()[-1])
-    assert sent > 10 * FLOOD_RATE  # the flood ran all along
+    # the flood ran all along: the flooder outlived the run, and it sent more than the run's
+    # ids allow from the start (how many depends on the CPU a loaded machine gives it)
+    assert flooding_to_the_end and sent > FLOOD_RATE, out
     report = verify(bag)
     assert report.ok, report.format()
     assert report.candidates_checked == BUDGET

@@ -49,6 +49,7 @@ from localpbo_core.space import load_space
 from localpbo_msgs_py.bag import BagWriter
 from localpbo_msgs_py.topics import DUEL_OUTCOME, EPISODE_RESULT
 from localpbo_ros.bagtools import copy_into, load_run
+from localpbo_ros.base import SuiteNode
 from localpbo_ros.dds import host_scope, in_process_scope
 from localpbo_ros.driver import judged_by_person
 from localpbo_ros.entry import STOP_GRACE_S
@@ -214,6 +215,9 @@ def run_suite(
             if timeout_s is not None and time.monotonic() - start > timeout_s:
                 _halt(opt, "timeout", f"no result within {timeout_s} s")
                 break
+        for node in nodes:  # every node's final counters in the bag, also after a short run
+            if isinstance(node, SuiteNode) and node is not opt:
+                node.publish_status()
         # let the recorder take the last messages (final outcome, incumbent, status), and a
         # judge's page learn that the run is complete
         settle = time.monotonic() + (0.3 if judge is None else 1.5)  # the page sees the end
