@@ -55,6 +55,7 @@ from localpbo_msgs_py.topics import (
     STATUS,
 )
 from localpbo_ros.driver import problem_of
+from localpbo_ros.episode_process import EpisodeProcess
 from localpbo_ros.follower import FollowerNode
 from localpbo_ros.judge import MAX_NAME, Journal, JudgeCore, is_simulated
 from localpbo_ros.judge_web import JudgeWeb
@@ -64,6 +65,10 @@ from localpbo_ros.rollouts import RolloutCache
 DEFAULT_STATE_DIR = "~/.local/state/localpbo/judge"
 AHEAD_QUEUE = 8
 """Speculative candidates waiting for their episode to be replayed ahead, at most."""
+REPLAY_NICENESS = 10
+"""Nice value added to the process that replays episodes for the page: a replay illustrates a
+duel, while the simulator's episodes ahead open the next one (the answer buttons wait for
+its result), so on a busy machine replays give way."""
 
 PARAMS = [
     Param("host", "127.0.0.1", "Address the page binds to (loopback unless allow_remote)."),
@@ -149,6 +154,8 @@ class JudgeNode(FollowerNode):
             judge_name=self.settings["name"][:MAX_NAME],
         )
         self._rollouts: RolloutCache | None = None
+        # the replays, off this process's interpreter lock and behind the episodes ahead
+        self._episodes = EpisodeProcess(niceness=REPLAY_NICENESS)
         try:
             self.web = JudgeWeb(
                 self.core,
@@ -195,6 +202,7 @@ class JudgeNode(FollowerNode):
         self.web.close()
         with contextlib.suppress(queue.Full):
             self._ahead.put_nowait(None)
+        self._episodes.close()
 
     def _on_speculative(self, msg: object) -> None:
         """A candidate a prepared branch would propose: replay its episode ahead (dropped,
@@ -241,12 +249,16 @@ class JudgeNode(FollowerNode):
         problem = problem_of(config)
         simulated = is_simulated(problem)
         if simulated:
+            stride = self.settings["frame_stride"]
+            episodes = self._episodes
             self._rollouts = RolloutCache(
                 problem,
                 config.seed,
-                stride=self.settings["frame_stride"],
+                stride=stride,
                 max_entries=self.settings["rollout_cache"],
+                recorder=lambda cid, native: episodes.record(config, cid, native, stride),
             )
+            episodes.warm(config)
         journal = Journal(self.state_dir / config.run_id)
         secret = journal.secret(lambda: secrets.token_urlsafe(24))
         self._keep_port(journal)

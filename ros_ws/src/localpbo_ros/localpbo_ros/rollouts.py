@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from localpbo_core.seeds import episode_seed
+from localpbo_ros.episode_process import EpisodeProcessError
 
 AXIS_NAMES = ("x", "y", "z")
 
@@ -33,13 +35,27 @@ class RolloutCache:
         run_seed: the run seed (episode seeds derive from it).
         stride: control steps between two frames.
         max_entries: rollouts kept (0 = none kept, every request re-runs the episode).
+        recorder: ``(candidate id, θ) -> task.record_native(θ, episode seed, stride)``
+            computed elsewhere (:class:`~localpbo_ros.episode_process.EpisodeProcess`: off
+            this process's interpreter lock); when it raises
+            :class:`~localpbo_ros.episode_process.EpisodeProcessError` the episode is
+            recorded here.
     """
 
-    def __init__(self, task: Any, run_seed: int, *, stride: int, max_entries: int) -> None:
+    def __init__(
+        self,
+        task: Any,
+        run_seed: int,
+        *,
+        stride: int,
+        max_entries: int,
+        recorder: Callable[[int, tuple[float, ...]], Any] | None = None,
+    ) -> None:
         self.task = task
         self.run_seed = run_seed
         self.stride = stride
         self.max_entries = max_entries
+        self.recorder = recorder
         self._lock = threading.Lock()  # one MuJoCo data: one episode at a time
         # by (id, θ): the branches of a speculation propose different θ under one id
         self._cache: OrderedDict[tuple[int, tuple[float, ...]], dict[str, Any]] = OrderedDict()
@@ -59,11 +75,18 @@ class RolloutCache:
             if hit is not None:
                 self._cache.move_to_end(key)
                 return hit
-            rec = self.task.record_native(
-                np.asarray(native, dtype=np.float64),
-                episode_seed(self.run_seed, candidate_id),
-                self.stride,
-            )
+            rec = None
+            if self.recorder is not None:
+                try:
+                    rec = self.recorder(candidate_id, tuple(native))
+                except EpisodeProcessError:
+                    rec = None  # the worker is gone: record the episode here
+            if rec is None:
+                rec = self.task.record_native(
+                    np.asarray(native, dtype=np.float64),
+                    episode_seed(self.run_seed, candidate_id),
+                    self.stride,
+                )
             self.episodes += 1
             out = {
                 "candidate_id": candidate_id,

@@ -19,6 +19,11 @@ arrives with the same id and θ, that return is published at once (``episodes_ah
 the number the episode would give now, since it is a function of run seed, id and θ. An
 episode ahead that fails or is never asked for leaves no trace. At most ``AHEAD_PER_ID``
 episodes run ahead per id of the run's range (forged speculative candidates are bounded too).
+Episodes ahead are handed by a thread of their own to a worker process
+(:mod:`localpbo_ros.episode_process`; an evaluator given to the node is called in that thread,
+under a lock), so neither the executor nor the interpreter lock is held by them while a
+person's answer to the open duel arrives; a real candidate whose episode ahead is under way
+waits for it rather than running it a second time.
 
 Pool worker (:mod:`localpbo_ros.pool`): the node announces its worker id
 (``<node name>.<8 hex>``) and the candidate it evaluates in its status heartbeats
@@ -33,7 +38,8 @@ state ``stopped`` on its way out, and its candidate goes to another worker at on
 from __future__ import annotations
 
 import math
-from collections import Counter, OrderedDict
+import threading
+from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
 from typing import Any, NoReturn
 
@@ -44,11 +50,13 @@ from localpbo_core.seeds import episode_seed
 from localpbo_core.session import evaluate_native
 from localpbo_msgs_py import RunConfig
 from localpbo_msgs_py.topics import SPECULATIVE_CANDIDATE
-from localpbo_ros.driver import problem_of
+from localpbo_ros.driver import judged_by_person, problem_of
+from localpbo_ros.episode_process import EpisodeProcess
 from localpbo_ros.evaluator import EvaluatorNode
 
 AHEAD_KEPT = 16
-"""Returns of episodes run ahead kept (oldest dropped)."""
+"""Returns of episodes run ahead kept (oldest dropped), and episodes ahead waiting to run at
+most (more are dropped: ``dropped_ahead_queue_full``)."""
 AHEAD_PER_ID = 4
 """Episodes run ahead per candidate id (one per possible answer: A, B, can't tell); more are
 dropped (``dropped_ahead_limit``), so forged speculative candidates cost a bounded number of
@@ -75,9 +83,21 @@ class SimNode(EvaluatorNode):
     ) -> None:
         super().__init__("sim_node", [], context=context, overrides=overrides, cli_args=cli_args)
         self._evaluator = evaluator
+        self._evaluator_lock = threading.Lock()  # a given evaluator: one call at a time
         self._problem: Any = None
+        self._episodes = EpisodeProcess()  # started by the first episode ahead
+        # guarded by _ahead_cond: episodes ahead waiting, the one running, the returns kept
+        self._ahead_cond = threading.Condition()
+        self._ahead_todo: deque[tuple[int, RunConfig, int, tuple[float, ...]]] = deque()
+        self._ahead_running: tuple[int, tuple[float, ...]] | None = None
         self._ahead: OrderedDict[tuple[int, tuple[float, ...]], float] = OrderedDict()
+        self._ahead_generation = 0  # a reset makes the worker's episode under way stale
+        self._ahead_stop = False
         self._ahead_runs: Counter[int] = Counter()  # episodes run ahead per candidate id
+        self._ahead_thread = threading.Thread(
+            target=self._run_ahead, name="sim-episodes-ahead", daemon=True
+        )
+        self._ahead_thread.start()
         self.subscribe(SPECULATIVE_CANDIDATE, self._on_speculative)
         self.publish_status()  # announce the worker now, not a status period later
 
@@ -92,23 +112,52 @@ class SimNode(EvaluatorNode):
         self.state = "stopped"
         self.publish_status()
 
+    def destroy_node(self) -> None:
+        """Stop the worker thread of the episodes ahead (an episode under way is finished)."""
+        with self._ahead_cond:
+            self._ahead_stop = True
+            self._ahead_todo.clear()
+            self._ahead_cond.notify_all()
+        self._ahead_thread.join(timeout=5.0)
+        self._episodes.close()
+        super().destroy_node()
+
     def reset(self) -> None:
         """Forget the previous run, its episodes run ahead too."""
         super().reset()
-        self._ahead.clear()
+        with self._ahead_cond:
+            self._ahead_generation += 1
+            self._ahead_todo.clear()
+            self._ahead.clear()
+            self._ahead_cond.notify_all()
         self._ahead_runs.clear()
 
     def adopt(self, config: RunConfig) -> None:
-        """Build the task of the run (unless an evaluator was given)."""
+        """Build the task of the run (unless an evaluator was given); a run a person judges
+        starts the process of the episodes ahead now."""
         if self._evaluator is None:
             self._problem = problem_of(config)
             if self._problem.dim != config.dim:
                 raise ValueError(f"dim: task has {self._problem.dim}, config {config.dim}")
+            if judged_by_person(config):  # the optimizer will speculate: episodes ahead
+                self._episodes.warm(config)
 
     def _evaluate(self, config: RunConfig, cid: int, native: tuple[float, ...]) -> float:
         if self._evaluator is not None:
-            return float(self._evaluator(config, cid, np.asarray(native, dtype=np.float64)))
+            with self._evaluator_lock:
+                return float(self._evaluator(config, cid, np.asarray(native, dtype=np.float64)))
         return evaluate_native(self._problem, np.asarray(native), episode_seed(config.seed, cid))
+
+    def _take_ahead(self, key: tuple[int, tuple[float, ...]]) -> float | None:
+        """The return of the episode ahead of ``key`` (waiting while it runs), else None.
+        Episodes ahead of this id that have not started are dropped: this one runs now,
+        here, and the other branches' θ for the id will not be asked."""
+        with self._ahead_cond:
+            self._ahead_cond.wait_for(lambda: self._ahead_running != key)
+            stale = [item for item in self._ahead_todo if item[2] == key[0]]
+            for item in stale:
+                self._ahead_todo.remove(item)
+            return self._ahead.pop(key, None)
 
     def queued(self) -> None:
         """Evaluate the queued candidates now, in the executor's thread."""
@@ -116,7 +165,7 @@ class SimNode(EvaluatorNode):
         assert config is not None
         while self._queue:
             cand = self._current = self._queue.popleft()
-            ahead = self._ahead.pop((cand.candidate_id, cand.theta), None)
+            ahead = self._take_ahead((cand.candidate_id, cand.theta))
             if ahead is not None:
                 self._current = None
                 self.counters["episodes_ahead_used"] += 1
@@ -142,23 +191,54 @@ class SimNode(EvaluatorNode):
         if cand is None:
             return
         key = (cand.candidate_id, cand.theta)
-        if cand.candidate_id in self._thetas or key in self._ahead:
+        with self._ahead_cond:
+            known = key in self._ahead or key == self._ahead_running
+            known = known or any((c, t) == key for _, _, c, t in self._ahead_todo)
+        if cand.candidate_id in self._thetas or known:
             return
         if self._ahead_runs[cand.candidate_id] >= AHEAD_PER_ID:
             self.drop("ahead_limit", f"candidate {cand.candidate_id}: {AHEAD_PER_ID} run ahead")
             return
-        self._ahead_runs[cand.candidate_id] += 1
-        try:
-            value = self._evaluate(config, cand.candidate_id, cand.theta)
-        except Exception:  # the real candidate, if asked, runs it again and reports the error
-            value = math.nan
-        if not math.isfinite(value):
-            self.counters["episodes_ahead_failed"] += 1
+        with self._ahead_cond:
+            if len(self._ahead_todo) >= AHEAD_KEPT:
+                full = True
+            else:
+                full = False
+                self._ahead_todo.append((self._ahead_generation, config, *key))
+                self._ahead_cond.notify_all()
+        if full:
+            self.drop("ahead_queue_full", f"{AHEAD_KEPT} episodes ahead are waiting")
             return
-        self._ahead[key] = value
-        while len(self._ahead) > AHEAD_KEPT:
-            self._ahead.popitem(last=False)
-        self.counters["episodes_ahead"] += 1
+        self._ahead_runs[cand.candidate_id] += 1
+
+    def _run_ahead(self) -> None:
+        """The worker thread: run the episodes ahead one after another."""
+        while True:
+            with self._ahead_cond:
+                self._ahead_cond.wait_for(lambda: self._ahead_stop or bool(self._ahead_todo))
+                if self._ahead_stop:
+                    return
+                generation, config, cid, theta = self._ahead_todo.popleft()
+                self._ahead_running = (cid, theta)
+            try:
+                if self._evaluator is None:
+                    value = self._episodes.evaluate(config, cid, theta)
+                else:
+                    value = self._evaluate(config, cid, theta)
+            except Exception:  # the real candidate, if asked, runs it again, reporting the error
+                value = math.nan
+            with self._ahead_cond:
+                self._ahead_running = None
+                self._ahead_cond.notify_all()
+                if generation != self._ahead_generation:
+                    continue  # the run changed while the episode ran
+                if not math.isfinite(value):
+                    self.counters["episodes_ahead_failed"] += 1
+                    continue
+                self._ahead[(cid, theta)] = value
+                while len(self._ahead) > AHEAD_KEPT:
+                    self._ahead.popitem(last=False)
+                self.counters["episodes_ahead"] += 1
 
 
 def main(argv: list[str] | None = None) -> NoReturn:
