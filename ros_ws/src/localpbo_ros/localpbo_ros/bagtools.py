@@ -147,14 +147,14 @@ def load_run(path: str | os.PathLike[str]) -> RecordedRun:
     require_bag(path)
     config: RunConfig | None = None
     for rec in read_messages(path, topics=[RUN_CONFIG.name]):
-        decoded = RunConfig.decode(rec.message)
-        if not isinstance(decoded, RunConfig):
+        found = RunConfig.decode(rec.message)
+        if not isinstance(found, RunConfig):
             continue
         if config is None:
-            config = decoded
-        elif not same_run_config(decoded, config):
+            config = found
+        elif not same_run_config(found, config):
             raise ValueError(
-                f"{path}: holds run configs of two runs ({config.run_id!r}, {decoded.run_id!r})"
+                f"{path}: holds run configs of two runs ({config.run_id!r}, {found.run_id!r})"
             )
     if config is None:
         raise ValueError(f"{path}: no valid {RUN_CONFIG.name} message; not a localpbo run bag")

@@ -194,7 +194,7 @@ def make_run_config(
         session = session or Session(settings, space)
     session = session or Session(settings)
     lower, upper = task_box(session.problem)
-    oracle: dict[str, float] = {"noise_fraction": settings.noise_fraction}
+    oracle: dict[str, float | str] = {"noise_fraction": settings.noise_fraction}
     if settings.tie_threshold > 0:
         oracle["tie_threshold"] = settings.tie_threshold
     if settings.indifference > 0:

@@ -719,7 +719,7 @@ class JudgeCore:
                     pending = [(n, s) for n, s in (("A", a), ("B", b)) if s["result"] != "done"]
                     busy = [n for n, s in pending if s["result"] == "evaluating"]
                     sent = [n for n, s in pending if s["result"] == "queued"]
-                    evaluating = (busy or sent or [None])[0]
+                    evaluating = next(iter(busy + sent), None)
                 duel = {
                     "duel_id": req.duel_id,
                     "a": a,

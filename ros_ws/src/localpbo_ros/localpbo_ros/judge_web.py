@@ -30,6 +30,7 @@ warnings and counters.
 
 from __future__ import annotations
 
+import functools
 import hmac
 import json
 import re
@@ -214,8 +215,7 @@ class _Handler(BaseHTTPRequestHandler):
                 with core.changed:
                     if core.version == seen:
                         core.changed.wait_for(
-                            lambda last=seen: core.version != last or server.closing,
-                            timeout=KEEPALIVE_S,
+                            functools.partial(_moved_on, core, server, seen), timeout=KEEPALIVE_S
                         )
                     if server.closing:
                         break
@@ -391,3 +391,8 @@ class JudgeWeb:
         self._server.shutdown()
         self._server.server_close()
         self._thread.join(timeout=5.0)
+
+
+def _moved_on(core: Any, server: Any, seen: int) -> bool:
+    """The page's state changed since version ``seen``, or the server closes."""
+    return bool(core.version != seen or server.closing)

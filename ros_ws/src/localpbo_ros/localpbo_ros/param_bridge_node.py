@@ -250,12 +250,21 @@ class ParamBridgeNode(EvaluatorNode):
         try:
             if s["reset_service"]:
                 self._reset = StampedClient(self, Trigger, s["reset_service"])
+            # callbacks of two arguments get the message info (rclpy; not in its stubs)
             self._score = self.create_subscription(
-                Float64, s["score_topic"], self._on_score, SCORE_QOS
+                Float64,
+                s["score_topic"],
+                self._on_score,  # type: ignore[arg-type]
+                SCORE_QOS,
             )
             if s["done_topic"]:
                 kind = Bool if s["done_type"] == "bool" else Empty
-                self.create_subscription(kind, s["done_topic"], self._on_done_msg, 10)
+                self.create_subscription(
+                    kind,
+                    s["done_topic"],
+                    self._on_done_msg,  # type: ignore[arg-type]
+                    10,
+                )
             if s["done_service"]:
                 self.create_service(Trigger, s["done_service"], self._on_done_call)
         except Exception as exc:  # rclpy refuses an invalid topic or service name

@@ -232,7 +232,8 @@ def run_suite(
                 n.close_timeout_s for n in nodes if isinstance(n, ParamBridgeNode)
             )
             # to the process's own stderr (a test's capture has no file descriptor)
-            faulthandler.dump_traceback_later(grace, exit=True, file=sys.__stderr__)
+            stderr = sys.__stderr__ if sys.__stderr__ is not None else sys.stderr
+            faulthandler.dump_traceback_later(grace, exit=True, file=stderr)
         for node in nodes:
             if isinstance(node, ParamBridgeNode | JudgeNode):
                 node.close()  # the controller gets its original parameters back; the page stops

@@ -28,6 +28,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from localpbo_msgs_py import CandidateMsg, EpisodeResult
 from localpbo_msgs_py.bag import read_messages
@@ -52,7 +53,7 @@ BRIDGE = {
     "score_reduce": "mean",
     "reset_service": "/thermal/reset",
 }
-MODES = {
+MODES: dict[str, dict[str, Any]] = {
     "samples": {"trial_samples": STEPS, "trial_duration_s": 30.0},
     "done": {"done_topic": "/thermal/done", "trial_duration_s": 30.0},
     "duration": {"trial_duration_s": 0.3},
@@ -121,7 +122,8 @@ def prefix_lengths(theta: tuple[float, ...], score: float, n: int) -> list[int]:
     """The k <= n for which minus the mean cost of the first k steps after a reset with gains
     ``theta`` is ``score`` (to rounding)."""
     out, total = [], 0.0
-    for k, c in enumerate(trial_costs(*theta, n), 1):
+    kp, ki, kd = theta
+    for k, c in enumerate(trial_costs(kp, ki, kd, n), 1):
         total += c
         if math.isclose(-total / k, score, rel_tol=1e-12, abs_tol=1e-12):
             out.append(k)
@@ -135,7 +137,7 @@ def is_exact(mode: str, theta: tuple[float, ...], score: float) -> bool:
 
 
 def run_command(
-    space: Path, bag: Path, mode: str, budget: int, seed: int = 1, **bridge: object
+    space: Path, bag: Path, mode: str, budget: int, seed: int = 1, **bridge: Any
 ) -> list[str]:
     """README's command for a bridged run in ``mode``."""
     return [

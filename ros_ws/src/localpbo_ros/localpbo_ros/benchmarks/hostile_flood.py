@@ -70,7 +70,7 @@ def triage_cost(config: RunConfig) -> None:
 
     triage = RunFilter()
     triage.classify(RUN_CONFIG.name, config.encode())
-    kinds = {
+    kinds: dict[str, tuple[Any, Any]] = {
         "candidate, id out of range": (CANDIDATE, CandidateMsg(RUN, 10**7, config.lower)),
         "episode result, id out of range": (EPISODE_RESULT, EpisodeResult.ok(RUN, 10**7, 1.0)),
         "duel request, id out of range": (DUEL_REQUEST, DuelRequest(RUN, 10**7, 0, 1)),
@@ -113,8 +113,8 @@ def flood(config: RunConfig, messages: int, seed: int) -> None:
     probe = Node("flooder", context=ctx)
     for node in (sim, oracle):
         node.warnings.period_s = 3600.0  # one warning per reason: the log stays short
-    for node in (sim, oracle, probe):
-        executor.add_node(node)
+    for each in (sim, oracle, probe):
+        executor.add_node(each)
     pubs = {
         s.name: probe.create_publisher(s.msg_type, s.name, s.qos)
         for s in (RUN_CONFIG, CANDIDATE, EPISODE_RESULT, DUEL_REQUEST)
@@ -160,9 +160,9 @@ def flood(config: RunConfig, messages: int, seed: int) -> None:
         )
     dropped = {k: v for n in (sim, oracle) for k, v in n.counters.items() if "dropped" in k}
     print(f"  drops (sim + oracle, by key): {dropped}")
-    for node in (sim, oracle, probe):
-        executor.remove_node(node)
-        node.destroy_node()
+    for each in (sim, oracle, probe):
+        executor.remove_node(each)
+        each.destroy_node()
     executor.shutdown()
     rclpy.shutdown(context=ctx)
 
