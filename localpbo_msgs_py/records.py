@@ -264,7 +264,8 @@ class DuelOutcome:
     decisive (a permutation of first/second); ``reason`` (non-empty text) iff failed; optional
     ``answer_seconds`` (finite float >= 0, never when failed or retracted): how long a person
     took from seeing the duel to answering it (set by ``judge_node``; absent for the simulated
-    oracle).
+    oracle); optional ``judge`` (the answering person's name) and ``note`` (their words on the
+    duel), non-empty text, only on a person's decisive or indifferent answer.
 
     ``retracted`` (only ``judge_node``, a person's undo) takes back the answer given to duel
     ``duel_id``: the optimizer returns to its state before that answer and requests the duel
@@ -281,6 +282,8 @@ class DuelOutcome:
     loser_id: int | None = None
     reason: str = ""
     answer_seconds: float | None = None
+    judge: str = ""
+    note: str = ""
 
     def __post_init__(self) -> None:
         check_run_id(self.run_id)
@@ -325,10 +328,23 @@ class DuelOutcome:
             check_text(self.reason, "reason", allow_empty=False)
         else:
             _require(not self.reason, "reason", f"must be empty when {self.kind}")
+        for name in ("judge", "note"):
+            text = check_text(getattr(self, name), name)
+            _require(
+                not text or self.kind in (OutcomeKind.DECISIVE, OutcomeKind.INDIFFERENT),
+                name,
+                f"must be empty when {self.kind}",
+            )
 
     @classmethod
     def decisive(
-        cls, request: DuelRequest, winner_id: int, *, answer_seconds: float | None = None
+        cls,
+        request: DuelRequest,
+        winner_id: int,
+        *,
+        answer_seconds: float | None = None,
+        judge: str = "",
+        note: str = "",
     ) -> DuelOutcome:
         """``winner_id`` beat the other candidate of ``request``."""
         loser = request.second_id if winner_id == request.first_id else request.first_id
@@ -341,11 +357,18 @@ class DuelOutcome:
             winner_id,
             loser,
             answer_seconds=answer_seconds,
+            judge=judge,
+            note=note,
         )
 
     @classmethod
     def indifferent(
-        cls, request: DuelRequest, *, answer_seconds: float | None = None
+        cls,
+        request: DuelRequest,
+        *,
+        answer_seconds: float | None = None,
+        judge: str = "",
+        note: str = "",
     ) -> DuelOutcome:
         """Neither candidate of ``request`` was preferred."""
         return cls(
@@ -355,6 +378,8 @@ class DuelOutcome:
             request.second_id,
             OutcomeKind.INDIFFERENT,
             answer_seconds=answer_seconds,
+            judge=judge,
+            note=note,
         )
 
     @classmethod
@@ -398,6 +423,9 @@ class DuelOutcome:
             level = LEVEL_ERROR
         if self.answer_seconds is not None:
             values["answer_seconds"] = format_float(self.answer_seconds)
+        for name in ("judge", "note"):
+            if getattr(self, name):
+                values[name] = getattr(self, name)
         return make_status(DUEL_OUTCOME_NAME, level, self.reason, values)
 
     @classmethod
@@ -409,13 +437,17 @@ class DuelOutcome:
         def body() -> DuelOutcome:
             level, _, v = read_status(msg, DUEL_OUTCOME_NAME)
             base = ("run_id", "duel_id", "first_id", "second_id", "kind")
-            require_keys(v, base, ("winner_id", "loser_id", "reason", "answer_seconds"))
+            require_keys(
+                v, base, ("winner_id", "loser_id", "reason", "answer_seconds", "judge", "note")
+            )
             seconds = (
                 parse_float(v["answer_seconds"], "answer_seconds")
                 if "answer_seconds" in v
                 else None
             )
-            timed = ("answer_seconds",) if seconds is not None else ()
+            timed: tuple[str, ...] = ("answer_seconds",) if seconds is not None else ()
+            timed += tuple(name for name in ("judge", "note") if name in v)
+            judge, note = v.get("judge", ""), v.get("note", "")
             run_id = check_run_id(v["run_id"])
             check_expected_run(run_id, expected_run_id)
             duel_id = parse_id(v["duel_id"], "duel_id")
@@ -438,6 +470,8 @@ class DuelOutcome:
                     parse_id(v["winner_id"], "winner_id"),
                     parse_id(v["loser_id"], "loser_id"),
                     answer_seconds=seconds,
+                    judge=judge,
+                    note=note,
                 )
             if kind is OutcomeKind.INDIFFERENT:
                 require_keys(
@@ -445,7 +479,14 @@ class DuelOutcome:
                 )
                 _check_level(level, LEVEL_OK)
                 return cls(
-                    run_id, duel_id, first, second, OutcomeKind.INDIFFERENT, answer_seconds=seconds
+                    run_id,
+                    duel_id,
+                    first,
+                    second,
+                    OutcomeKind.INDIFFERENT,
+                    answer_seconds=seconds,
+                    judge=judge,
+                    note=note,
                 )
             if kind is OutcomeKind.RETRACTED:
                 require_keys(v, base, context=" (must be absent when kind is retracted)")

@@ -10,10 +10,12 @@ import time
 import urllib.error
 import urllib.request
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
+from localpbo_ros.bagtools import judged_by
 from localpbo_ros.judge import MAX_BODY_BYTES, Journal, JudgeCore, tie_threshold_of
 from localpbo_ros.judge_node import JudgeNode, check_host
 from localpbo_ros.params import ParameterError
@@ -446,6 +448,9 @@ def test_note_name_and_visible_time_journaled(tmp_path: Path) -> None:
     extra = {"note": " steadier ", "judge": "Ada", "visible_seconds": 4.0, "hidden": True}
     assert core.answer(body(**extra)).status == 200
     assert published[0].answer_seconds == 4.0
+    # the name and the note go into the run's record (the outcome the bag keeps) too
+    assert (published[0].judge, published[0].note) == ("Ada", "steadier")
+    assert DuelOutcome.decode(published[0].encode()) == published[0]
     line = json.loads((tmp_path / "judge-unit" / "answers.jsonl").read_text())
     assert (line["note"], line["judge"], line["hidden"]) == ("steadier", "Ada", True)
     assert line["server_seconds"] == 30.0
@@ -457,6 +462,24 @@ def test_note_name_and_visible_time_journaled(tmp_path: Path) -> None:
     clock.t += 2.0
     assert core.answer(body(duel_id=1, second_id=2, visible_seconds=50.0)).status == 200
     assert published[1].answer_seconds == 2.0
+    # a journal read back (a restarted judge) gives the same outcomes, name and note included
+    reread, bad = Journal(tmp_path / "judge-unit").load("judge-unit")
+    assert bad == 0 and reread == published[:2]
+
+
+def test_bag_info_names_who_judged_the_answers_that_stand() -> None:
+    req = [DuelRequest("r", k, 0, k + 1) for k in range(4)]
+    outcomes = [
+        DuelOutcome.decisive(req[0], 0, judge="Ada", note="smoother"),
+        DuelOutcome.decisive(req[0], 0, judge="Ada", note="smoother"),  # re-published
+        DuelOutcome.indifferent(req[1], judge="Bo"),
+        DuelOutcome.decisive(req[2], 3, judge="Bo"),
+        DuelOutcome.retracted(req[2]),  # Bo's answer taken back ...
+        DuelOutcome.decisive(req[2], 0, judge="Ada"),  # ... and Ada's stands
+        DuelOutcome.failed(req[3], "episode failed"),
+    ]
+    assert judged_by(SimpleNamespace(outcomes=outcomes)) == "judged by: Ada 2, Bo 1; 1 note"
+    assert judged_by(SimpleNamespace(outcomes=[DuelOutcome.decisive(req[0], 0)])) == ""
 
 
 @pytest.mark.parametrize(

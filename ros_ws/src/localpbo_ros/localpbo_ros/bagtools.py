@@ -322,6 +322,24 @@ def outcome_counts(run: RecordedRun) -> OutcomeCounts:
     )
 
 
+def judged_by(run: RecordedRun) -> str:
+    """One line on who gave the answers that stand (each duel's answer, a re-published one
+    counted once, a taken-back one not at all) and how many carry a note, e.g. ``judged by:
+    Ada 31, Bo 9; 4 notes``; empty when no answer names a person."""
+    first: dict[int, DuelOutcome] = {}
+    for out in run.outcomes:
+        if out.kind is OutcomeKind.RETRACTED:
+            first.pop(out.duel_id, None)
+        elif out.kind in (OutcomeKind.DECISIVE, OutcomeKind.INDIFFERENT):
+            first.setdefault(out.duel_id, out)
+    people = Counter(out.judge for out in first.values() if out.judge)
+    if not people:
+        return ""
+    notes = sum(1 for out in first.values() if out.note)
+    names = ", ".join(f"{name} {n}" for name, n in sorted(people.items()))
+    return f"judged by: {names}; {notes} note{'' if notes == 1 else 's'}"
+
+
 def duel_timings(run: RecordedRun) -> Sequence[Timing]:
     """Per-duel times of a recorded run (:func:`load_run`): the optimizer's decision time (from the
     ``decision_seconds`` of each duel's first request) and, when a person judged

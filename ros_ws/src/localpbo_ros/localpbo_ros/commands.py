@@ -471,6 +471,7 @@ def cmd_bag_info(args: argparse.Namespace) -> int:
     from localpbo_ros.bagtools import (
         duel_timings,
         history_problem,
+        judged_by,
         load_run,
         outcome_counts,
         require_bag,
@@ -493,6 +494,8 @@ def cmd_bag_info(args: argparse.Namespace) -> int:
     if problem:
         print(f"not one run's record: {problem}")
     print(outcome_counts(run).format())
+    if people := judged_by(run):
+        print(people)
     for timing in duel_timings(run):
         print(timing.format())
     for line in format_statuses(last_statuses(args.bag, run.config.run_id)):

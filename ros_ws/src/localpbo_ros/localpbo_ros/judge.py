@@ -245,6 +245,8 @@ class Journal:
                         obj.get("winner_id"),
                         obj.get("loser_id"),
                         answer_seconds=obj.get("answer_seconds"),
+                        judge=str(obj.get("judge", "")),
+                        note=str(obj.get("note", "")),
                     )
                     out.append(
                         Entry(
@@ -808,13 +810,15 @@ class JudgeCore:
         visible = extra.get("visible_seconds")
         if visible is not None:
             seconds = visible if seconds is None else min(visible, seconds)
-        if choice is Choice.TIE:
-            outcome = DuelOutcome.indifferent(req, answer_seconds=seconds)
-        else:
-            winner = req.first_id if choice is Choice.A else req.second_id
-            outcome = DuelOutcome.decisive(req, winner, answer_seconds=seconds)
         note = str(extra.get("note", ""))
         judge = str(extra.get("judge", "")) or self.judge_name
+        if choice is Choice.TIE:
+            outcome = DuelOutcome.indifferent(req, answer_seconds=seconds, judge=judge, note=note)
+        else:
+            winner = req.first_id if choice is Choice.A else req.second_id
+            outcome = DuelOutcome.decisive(
+                req, winner, answer_seconds=seconds, judge=judge, note=note
+            )
         hidden = bool(extra.get("hidden", False))
         assert self.journal is not None
         try:
