@@ -525,6 +525,10 @@ def test_undo_retracts_then_the_reasked_duel_is_answered_anew(tmp_path: Path) ->
     view = core.view()
     assert view["retracting"] == [0] and view["history"][0]["undone"] == "undone"
     assert view["progress"]["answered"] == 0
+    # duel 1, asked after the answer being taken back, is hidden at once and not answerable
+    assert view["duel"] is None
+    withdrawn = core.answer(body(duel_id=1, second_id=2))
+    assert (withdrawn.status, withdrawn.reason) == (409, "withdrawn")
     # the optimizer asks duel 0 again: it opens first, the later duel 1 is withdrawn
     assert core.on_request(DuelRequest("judge-unit", 0, 0, 1)) is None
     view = core.view()
@@ -552,9 +556,12 @@ def test_refused_undo_restores_the_answer(tmp_path: Path) -> None:
         "running",
         counters={"duels_done": 1, "retraction_refused": 1},
     )
+    open_duel(core, 1, 0, 2)  # asked before the undo arrived: hidden while the undo is on
+    assert core.view()["duel"] is None
     core.on_status(refused)
     view = core.view()
     assert view["retracting"] == [] and view["progress"]["answered"] == 1
+    assert view["duel"]["duel_id"] == 1  # the undo refused: duel 1 stands, shown again
     assert "refused" in view["notice"] and view["history"][0]["undone"] == ""
     assert core.counters["undo_refused"] == 1
     again, _, _, _ = make_core(tmp_path)  # journal: answer, undo, restore

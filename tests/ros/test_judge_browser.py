@@ -486,6 +486,20 @@ def test_undo_in_the_browser_rebuilt_by_verify(browser: Any, tmp_path: Path) -> 
     browser.execute_script("lastAnswerAt = -1e9;")
     press(browser, "u")
     reply_text(browser, f"Undone: duel {second}")
+    # from the undo on, the duel asked after the taken-back answer is never offered
+    offered = set()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        shown = browser.execute_script(
+            "return state && state.duel && !document.getElementById('answer-a').disabled"
+            " ? state.duel.duel_id : null;"
+        )
+        if shown is not None:
+            offered.add(shown)
+            if shown == second:
+                break
+        time.sleep(0.01)
+    assert offered == {second}, offered
     again = duel_shown(browser)
     assert again == second
     assert "undone" in browser.find_element("css selector", "#history tbody tr").text

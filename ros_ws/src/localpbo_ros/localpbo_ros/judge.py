@@ -677,10 +677,17 @@ class JudgeCore:
         )
 
     def current(self) -> _Open | None:
-        """The duel to show: the first ready one in queue order, else the first open one."""
+        """The duel to show: the first ready one in queue order, else the first open one;
+        never one that an undo under way withdraws (:meth:`_withdrawn`)."""
         with self.lock:
-            items = list(self.open.values())
+            items = [i for i in self.open.values() if not self._withdrawn(i.request.duel_id)]
             return next((i for i in items if self._ready(i.request)), items[0] if items else None)
+
+    def _withdrawn(self, duel_id: int) -> bool:
+        """Duel ``duel_id`` was asked after an answer that is being taken back: the optimizer
+        withdraws it when it asks the undone duel again (it stays open here until then, and
+        again shown if the optimizer refuses the undo)."""
+        return bool(self.retracting) and duel_id > min(self.retracting)
 
     def _side(self, cid: int) -> dict[str, Any]:
         cand = self.candidates.get(cid)
@@ -901,6 +908,15 @@ class JudgeCore:
                 f"duel {duel_id} was already answered: {_said(done)}",
             )
         assert item is not None
+        if self._withdrawn(duel_id):
+            first = min(self.retracting)
+            return Reply.refuse(
+                409,
+                "duel_id",
+                "withdrawn",
+                f"duel {duel_id} was asked after duel {first}, whose answer is being taken "
+                f"back: the optimizer withdraws it and asks duel {first} again",
+            )
         if choice is Choice.TIE and not self.ties:
             return Reply.refuse(
                 400, "choice", "ties_disabled", "this run does not take can't-tell answers"
