@@ -44,13 +44,14 @@ import json
 import logging
 import os
 import signal
+import socket
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from localpbo_core.experiments import ExperimentSpec, PlannedRun
 from localpbo_core.provenance import code_block
@@ -407,6 +408,30 @@ def start_ray(address: str | None, workers: int | None, keep_sigterm_handler: bo
     return True
 
 
+ADDRESS_TIMEOUT_S = 5.0
+"""Seconds ``localpbo sweep --address HOST:PORT`` waits for a TCP connection to the cluster's
+head before it refuses the address (Ray itself would retry for minutes)."""
+
+
+def check_address(address: str) -> None:
+    """Refuse ``--address HOST:PORT`` when nothing accepts a connection there; other forms
+    (``auto``, ``ray://...``) are left to Ray.
+
+    Raises:
+        SettingError: ``--address``, naming the address and why.
+    """
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or "/" in address or not port.isdigit():
+        return
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), ADDRESS_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise SettingError(
+            "--address", f"no Ray cluster answers at {address} ({exc.strerror or exc})"
+        ) from None
+
+
 def stop_ray() -> None:
     """``ray.shutdown()``; after the embedded Ray, also stop any of its processes still
     running and remove its temporary folder."""
@@ -535,6 +560,8 @@ def main_sweep(args: Any) -> int:
     if args.dry_run:
         print(format_dry_run(out, plans, args.max_runs, reuse))
         return 0
+    if args.address is not None and not args.in_process:
+        check_address(args.address)
     start = time.perf_counter()
     result = sweep(
         spec,
@@ -576,21 +603,56 @@ def _stops_deferred(enabled: bool) -> Iterator[list[int]]:
     prints "Exception ignored" and goes on, so the sweep would run to the end) or leave Ray's
     driver half connected (its C++ core then aborts the process at exit); for the same reason
     the caller keeps Ray's own SIGTERM handler (``sys.exit``) out of ``ray.init``
-    (:func:`start_ray`). The handlers from before are restored after the block."""
+    (:func:`start_ray`). The handlers from before are restored after the block.
+
+    A block that has not ended ``STOP_WAIT_S`` after the first signal (a connection that
+    hangs), or a second signal, ends the process at once with 130, after removing what the
+    embedded Ray had started (:func:`abandon_ray`)."""
     noted: list[int] = []
     if not enabled or threading.current_thread() is not threading.main_thread():
         yield noted
         return
+    inside = threading.Event()
+    inside.set()
+
+    def give_up() -> None:
+        if inside.is_set():
+            abandon_ray()
 
     def note(signum: int, frame: Any) -> None:
         noted.append(signum)
+        if len(noted) > 1:
+            give_up()
+        else:
+            timer = threading.Timer(STOP_WAIT_S, give_up)
+            timer.daemon = True
+            timer.start()
 
     previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield noted
     finally:
+        inside.clear()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+STOP_WAIT_S = 10.0
+"""Seconds a Ray start or connection may still take after Ctrl-C or SIGTERM before the sweep
+gives up on it and ends at once."""
+
+
+def abandon_ray() -> NoReturn:
+    """End the process at once with 130 (an interrupted sweep; nothing of it was stored yet),
+    after stopping the processes of the embedded Ray it started, if any."""
+    from localpbo_core.stopping import exit_now
+
+    print("interrupted while Ray was starting; nothing was run", file=sys.stderr)
+    if _SESSION is not None:
+        from localpbo_core import ray_cleanup
+
+        ray_cleanup.clean(_SESSION, ray_cleanup.WATCHDOG_GRACE_S)
+    exit_now(EXIT_INTERRUPTED)
 
 
 @contextlib.contextmanager
