@@ -26,9 +26,19 @@ HELPER = (
 writes its answer into a pipe to this process."""
 
 
+def _default_sigint() -> None:
+    # as from a terminal: a shell starts background jobs (e.g. `make test &`) with SIGINT
+    # ignored, and Python then keeps it ignored
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run(script: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        preexec_fn=_default_sigint,
     )
 
 
