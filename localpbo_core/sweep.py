@@ -424,8 +424,7 @@ def check_address(address: str) -> None:
     if not sep or not host or "/" in address or not port.isdigit():
         return
     try:
-        with socket.create_connection((host.strip("[]"), int(port)), ADDRESS_TIMEOUT_S):
-            pass
+        socket.create_connection((host.strip("[]"), int(port)), ADDRESS_TIMEOUT_S).close()
     except OSError as exc:
         raise SettingError(
             "--address", f"no Ray cluster answers at {address} ({exc.strerror or exc})"

@@ -28,7 +28,7 @@ import os
 import signal
 import threading
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import CancelledError, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
@@ -141,37 +141,38 @@ class EpisodeProcess:
     def warm(self, config: RunConfig) -> None:
         """Start the worker and build the run's task there now, without waiting (the first
         episode then does not wait for a new interpreter); a no-op once closed."""
-        with contextlib.suppress(EpisodeProcessError):
-            self._pool_for_call().submit(_problem, config)
+        with contextlib.suppress(EpisodeProcessError, BrokenProcessPool):
+            self._submit(_problem, config)
 
-    def _pool_for_call(self) -> ProcessPoolExecutor:
+    def _submit(self, fn: Any, *args: Any) -> tuple[ProcessPoolExecutor, Future[Any]]:
+        """Hand ``fn(*args)`` to the worker (started if needed); under the lock, so that
+        :meth:`close` never comes between the check and the submission."""
         with self._lock:
             if self._closed:
                 raise EpisodeProcessError("the episode process is closed")
             if self._pool is None:
-                context = multiprocessing.get_context("spawn")
                 self._pool = ProcessPoolExecutor(
                     1,
-                    mp_context=context,
+                    mp_context=multiprocessing.get_context("spawn"),
                     initializer=_init_worker,
                     initargs=(os.getpid(), self.niceness),
                 )
-            return self._pool
+            return self._pool, self._pool.submit(fn, *args)
 
     def _call(self, fn: Any, *args: Any) -> Any:
-        pool = self._pool_for_call()
+        pool: ProcessPoolExecutor | None = None
         try:
-            return pool.submit(fn, *args).result()
+            pool, future = self._submit(fn, *args)
+            return future.result()
         except BrokenProcessPool as exc:
             with self._lock:
                 if self._pool is pool:
                     self._pool = None  # the next call starts a new worker
-            pool.shutdown(wait=False, cancel_futures=True)
+            if pool is not None:
+                pool.shutdown(wait=False, cancel_futures=True)
             raise EpisodeProcessError(f"the episode process ended: {exc}") from None
-        except RuntimeError as exc:  # the pool was shut down (close) while this call waited
-            if "shutdown" in str(exc):
-                raise EpisodeProcessError(str(exc)) from None
-            raise
+        except CancelledError:  # closed while this call waited
+            raise EpisodeProcessError("the episode process was closed") from None
 
     def close(self) -> None:
         """Stop the worker (after the episode under way, if any); later calls fail."""

@@ -75,12 +75,10 @@ class RolloutCache:
             if hit is not None:
                 self._cache.move_to_end(key)
                 return hit
-            rec = None
-            if self.recorder is not None:
-                try:
-                    rec = self.recorder(candidate_id, tuple(native))
-                except EpisodeProcessError:
-                    rec = None  # the worker is gone: record the episode here
+            try:
+                rec = None if self.recorder is None else self.recorder(candidate_id, tuple(native))
+            except EpisodeProcessError:
+                rec = None  # the worker is gone: record the episode here
             if rec is None:
                 rec = self.task.record_native(
                     np.asarray(native, dtype=np.float64),

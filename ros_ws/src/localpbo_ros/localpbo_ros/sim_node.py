@@ -200,10 +200,8 @@ class SimNode(EvaluatorNode):
             self.drop("ahead_limit", f"candidate {cand.candidate_id}: {AHEAD_PER_ID} run ahead")
             return
         with self._ahead_cond:
-            if len(self._ahead_todo) >= AHEAD_KEPT:
-                full = True
-            else:
-                full = False
+            full = len(self._ahead_todo) >= AHEAD_KEPT
+            if not full:
                 self._ahead_todo.append((self._ahead_generation, config, *key))
                 self._ahead_cond.notify_all()
         if full:
