@@ -118,6 +118,14 @@ def add_report_command(sub: argparse._SubParsersAction) -> None:
     )
     report.add_argument("--notes", default=None, help="Markdown file appended to the report")
     report.add_argument("--title", default="localpbo report", help="the report's heading")
+    report.add_argument(
+        "--complete-seeds",
+        default=None,
+        metavar="SEEDS",
+        help="tabulate only these seeds (e.g. 0-9), and a group (spec, problem, variant, "
+        "algorithm) only once all of them are stored; the coverage table still counts every "
+        "stored run (default: every run)",
+    )
 
 
 def report_parser() -> argparse.ArgumentParser:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import subprocess
 from collections.abc import Iterable
 from pathlib import Path
@@ -84,12 +85,19 @@ def _files(entries: Iterable[str]) -> list[Path]:
     return sorted(out)
 
 
-def _digest(entries: Iterable[str]) -> str:
+def digest_of(files: Iterable[tuple[str, bytes]]) -> str:
+    """SHA-256 (first 16 hex digits) over ``(path, bytes)`` pairs in sorted path order: the
+    digest of the module docstring, whether the files come from the work tree or from a
+    commit (:func:`localpbo_core.experiments.stored_code.code_at`)."""
     h = hashlib.sha256()
-    for path in _files(entries):
-        h.update(path.relative_to(ROOT).as_posix().encode() + b"\0")
-        h.update(path.read_bytes() + b"\0")
+    for path, data in sorted(files):
+        h.update(path.encode() + b"\0")
+        h.update(data + b"\0")
     return h.hexdigest()[:16]
+
+
+def _digest(entries: Iterable[str]) -> str:
+    return digest_of((p.relative_to(ROOT).as_posix(), p.read_bytes()) for p in _files(entries))
 
 
 def algorithm_sources(algorithm: str) -> tuple[str, ...]:
@@ -151,3 +159,48 @@ def stale_algorithms(docs: Iterable[dict[str, Any]]) -> dict[str, str]:
         elif code.get("algorithm_digest") != code_block(algorithm)["algorithm_digest"]:
             out[algorithm] = "changed since stored"
     return out
+
+
+def stored_by_commit(table: Path) -> dict[Path, tuple[str, dict[str, Any]]]:
+    """The runs of a ``stored_code.json`` file (:mod:`localpbo_core.experiments.stored_code`):
+    ``{resolved run path: (commit that stored it, that commit's digests)}``; empty if the
+    file does not exist."""
+    if not table.is_file():
+        return {}
+    doc = json.loads(table.read_text())
+    commits = doc["commits"]
+    return {
+        (table.parent / rel).resolve(): (commit, commits[commit])
+        for rel, commit in doc["runs"].items()
+    }
+
+
+def equivalent_digests(table: Path) -> dict[str, set[tuple[str, str]]]:
+    """``{algorithm: {(old digest, new digest)}}`` from an ``equivalent_code.json`` file
+    (``python -m localpbo_core.experiments.drift --why --record``): the pairs whose re-runs
+    on one machine gave the same candidates bit for bit; empty if the file does not exist."""
+    if not table.is_file():
+        return {}
+    out: dict[str, set[tuple[str, str]]] = {}
+    for entry in json.loads(table.read_text()):
+        if entry["identical"] == entry["candidates"]:
+            out.setdefault(entry["algorithm"], set()).add((entry["from"], entry["to"]))
+    return out
+
+
+def same_behaviour(algorithm: str, digest: str, pairs: dict[str, set[tuple[str, str]]]) -> bool:
+    """True if a chain of equivalent pairs leads from ``digest`` to today's
+    ``algorithm_digest`` of ``algorithm``."""
+    today = code_block(algorithm)["algorithm_digest"]
+    edges = pairs.get(algorithm, set())
+    seen, frontier = {digest}, [digest]
+    while frontier:
+        node = frontier.pop()
+        if node == today:
+            return True
+        for a, b in edges:
+            for nxt in ((b,) if a == node else ()) + ((a,) if b == node else ()):
+                if nxt not in seen:
+                    seen.add(nxt)
+                    frontier.append(nxt)
+    return False

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from localpbo_core.arguments import parse_seeds
 from localpbo_core.experiments.claims import claims_table
 from localpbo_core.experiments.paper import (
     PAPER_POLICY_WARM_START,
@@ -62,7 +63,10 @@ class StoredRun:
     reused_from: str = ""
     """``<spec>/<run_id>`` when ``localpbo sweep --reuse`` copied the run from another sweep."""
     code: dict[str, Any] | None = None
-    """The run's ``code`` block (:mod:`localpbo_core.provenance`); None if stored without."""
+    """The run's ``code`` block (:mod:`localpbo_core.provenance`), or for a run stored without
+    one the digests of the commit that stored it (``stored_by_commit``); None if neither is
+    known. ``same_behaviour`` is set when recorded re-runs show its algorithm's code since
+    then left the run's trace unchanged (:func:`~localpbo_core.provenance.same_behaviour`)."""
 
 
 def holm(pvalues: Sequence[float]) -> list[float]:
@@ -104,9 +108,20 @@ def run_files(paths: Iterable[str | Path]) -> list[Path]:
 
 
 def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
-    """Read every run under ``paths`` (:func:`run_files`)."""
+    """Read every run under ``paths`` (:func:`run_files`). A folder's ``stored_code.json``
+    dates the runs stored without a code version by the commit that stored them, its
+    ``equivalent_code.json`` says which code changes left traces unchanged
+    (:mod:`localpbo_core.experiments.stored_code`, :mod:`localpbo_core.experiments.drift`)."""
+    from localpbo_core.provenance import equivalent_digests, stored_by_commit
     from localpbo_core.sweep import read_run
 
+    paths = list(paths)
+    by_commit: dict[Path, tuple[str, dict[str, Any]]] = {}
+    pairs: dict[str, set[tuple[str, str]]] = {}
+    for folder in (Path(p) for p in paths if Path(p).is_dir()):
+        by_commit.update(stored_by_commit(folder / "stored_code.json"))
+        for algorithm, found in equivalent_digests(folder / "equivalent_code.json").items():
+            pairs.setdefault(algorithm, set()).update(found)
     runs = []
     for path in run_files(paths):
         doc = read_run(path)
@@ -132,7 +147,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
                 cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
                 optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
                 reused_from=str(meta.get("reused_from", "")),
-                code=doc.get("code") if isinstance(doc.get("code"), dict) else None,
+                code=_code_of(doc, by_commit.get(path.resolve()), pairs),
             )
         )
     if not runs:
@@ -143,6 +158,49 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     return sorted(
         runs, key=lambda r: (r.spec, r.problem_label, r.variant, r.algorithm_label, r.seed)
     )
+
+
+def complete_groups(runs: Sequence[StoredRun], seeds: Sequence[int]) -> list[StoredRun]:
+    """The runs of ``seeds`` in the groups (spec, problem, variant, algorithm) that have a
+    stored run for every one of ``seeds``: a sweep still under way shows no partial group."""
+    wanted = set(seeds)
+    have: dict[tuple[str, str, str, str], set[int]] = {}
+    for r in runs:
+        have.setdefault((r.spec, r.problem_label, r.variant, r.algorithm_label), set()).add(r.seed)
+    return [
+        r
+        for r in runs
+        if r.seed in wanted
+        and wanted <= have[(r.spec, r.problem_label, r.variant, r.algorithm_label)]
+    ]
+
+
+def _code_of(
+    doc: dict[str, Any],
+    stored_by: tuple[str, dict[str, Any]] | None,
+    pairs: dict[str, set[tuple[str, str]]],
+) -> dict[str, Any] | None:
+    """The code block :class:`StoredRun` keeps (its ``code`` attribute)."""
+    from localpbo_core.provenance import same_behaviour
+
+    algorithm = str(doc["settings"]["algorithm"])
+    code = doc.get("code")
+    if isinstance(code, dict):
+        block = dict(code)
+    elif stored_by is not None and algorithm in stored_by[1]["algorithms"]:
+        commit, digests = stored_by
+        block = {
+            "digest": digests["digest"],
+            "algorithm_digest": digests["algorithms"][algorithm],
+            "commit": commit,
+            "dirty": False,
+            "stored_by_commit": True,
+        }
+    else:
+        return None
+    if same_behaviour(algorithm, str(block.get("algorithm_digest")), pairs):
+        block["same_behaviour"] = True
+    return block
 
 
 # ---------------------------------------------------------------------- tables
@@ -289,20 +347,26 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
 
 # ---------------------------------------------------------------------- provenance
 CODE_CURRENT = "current"
+CODE_SAME = "same behaviour"
 CODE_CHANGED = "changed since"
 CODE_NONE = "none stored"
 
 
 def code_state(run: StoredRun) -> str:
-    """Which code made ``run``: :data:`CODE_NONE` (stored without a code version),
-    :data:`CODE_CHANGED` (its algorithm's sources differ today,
-    :func:`localpbo_core.provenance.code_block`) or :data:`CODE_CURRENT`."""
+    """Which code made ``run``: :data:`CODE_NONE` (no code version known),
+    :data:`CODE_CURRENT` (its algorithm's sources are today's,
+    :func:`localpbo_core.provenance.code_block`), :data:`CODE_SAME` (they changed, but
+    re-runs with both codes on one machine gave the same trace bit for bit) or
+    :data:`CODE_CHANGED`. A run stored without a code version is judged by the commit that
+    stored it."""
     if run.code is None:
         return CODE_NONE
     from localpbo_core.provenance import code_block
 
     today = code_block(str(run.settings["algorithm"]))["algorithm_digest"]
-    return CODE_CURRENT if run.code.get("algorithm_digest") == today else CODE_CHANGED
+    if run.code.get("algorithm_digest") == today:
+        return CODE_CURRENT
+    return CODE_SAME if run.code.get("same_behaviour") else CODE_CHANGED
 
 
 def code_cell(runs: Sequence[StoredRun]) -> str:
@@ -332,13 +396,14 @@ def _group_list(keys: Sequence[tuple[str, str, str]], total: int, algorithms: in
 
 
 def provenance_table(runs: Sequence[StoredRun]) -> list[str]:
-    """Per spec: runs with a code version, the commits they name, and the groups (problem,
-    variant, algorithm) whose runs were made by other code than today's: the algorithm's
-    sources changed since, or no code version stored."""
+    """Per spec: runs with a code version of their own, runs dated by the commit that stored
+    them, the commits named, and the groups (problem, variant, algorithm) whose runs were made
+    by other code than today's: the algorithm's sources changed since (and no recorded re-run
+    shows the same trace), or no code version known."""
     lines = [
-        "| spec | runs | with a code version | commits | algorithm changed since "
-        "| no code version stored |",
-        "| --- | ---: | ---: | --- | --- | --- |",
+        "| spec | runs | with a code version | dated by the storing commit | commits "
+        "| algorithm changed since | no code version known |",
+        "| --- | ---: | ---: | ---: | --- | --- | --- |",
     ]
     for spec in sorted({r.spec for r in runs}):
         mine = [r for r in runs if r.spec == spec]
@@ -353,13 +418,53 @@ def provenance_table(runs: Sequence[StoredRun]) -> list[str]:
             for r in mine
             if r.code is not None
         )
+        dated = sum(1 for r in mine if r.code is not None and r.code.get("stored_by_commit"))
+        own = sum(1 for r in mine if r.code is not None) - dated
         lines.append(
-            f"| {spec} | {len(mine)} | {sum(r.code is not None for r in mine)} | "
+            f"| {spec} | {len(mine)} | {own} | {dated} | "
             + (", ".join(f"{c} ({n})" for c, n in sorted(commits.items())) or "—")
             + f" | {_group_list(changed, len(groups)) or '—'} "
             f"| {_group_list(unknown, len(groups)) or '—'} |"
         )
     return lines
+
+
+def drift_section(paths: Iterable[str | Path]) -> list[str]:
+    """The re-runs recorded in the input folders' ``equivalent_code.json`` files
+    (``python -m localpbo_core.experiments.drift --why --record``) as a table: how many
+    leading candidates the stored run shares with the same commit's code re-run on this
+    machine (what the machine changes) and that re-run with today's code's (what the code
+    changes). Empty without such a file."""
+    import json
+
+    entries = []
+    for folder in (Path(p) for p in paths if Path(p).is_dir()):
+        table = folder / "equivalent_code.json"
+        if table.is_file():
+            entries += json.loads(table.read_text())
+    if not entries:
+        return []
+    lines = [
+        "### What a re-run changes",
+        "",
+        "Stored runs re-made on this machine twice (`python -m localpbo_core.experiments.drift "
+        "--why --record docs/results/equivalent_code.json RUN...`): with the code of the commit "
+        "that made them, and with today's. Leading candidates equal bit for bit: stored against "
+        "the same code here (what the machine changes) and that code against today's, both "
+        "here (what the code changes); the gap is the largest coordinate difference at the "
+        "first candidate where the two codes part.",
+        "",
+        "| algorithm | run | commit | candidates | stored = same code here "
+        "| same code = today's code | gap |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for e in sorted(entries, key=lambda e: (e["algorithm"], e["run"], e["to"])):
+        lines.append(
+            f"| {e['algorithm']} | {Path(e['run']).name.removesuffix('.json.gz')} "
+            f"| {e['commit'][:10]} | {e['candidates']} | {e.get('stored_identical', '')} "
+            f"| {e['identical']} | {float(e.get('code_gap', 0.0)):.3g} |"
+        )
+    return [*lines, ""]
 
 
 # ---------------------------------------------------------------------- coverage
@@ -585,16 +690,23 @@ def write_report(
     figures: str = ".",
     notes: Path | None = None,
     title: str = "localpbo report",
+    complete_seeds: Sequence[int] | None = None,
 ) -> Path:
     """Write the report ``out/name`` and its PNGs into ``out/figures`` (module docstring);
-    return the report's path. ``notes``: a Markdown file appended verbatim."""
+    return the report's path. ``notes``: a Markdown file appended verbatim.
+    ``complete_seeds``: tabulate only :func:`complete_groups` of these seeds (the coverage
+    table counts every stored run)."""
     if not 0.0 < alpha < 1.0:
         raise SettingError("--alpha", f"must lie in (0, 1), got {alpha!r}")
     if Path(figures).is_absolute() or ".." in Path(figures).parts:
         raise SettingError("--figures", f"must be a folder inside --out, got {figures!r}")
     if notes is not None and not notes.is_file():
         raise SettingError("--notes", f"{notes} is not a file")
-    runs = load_runs(paths)
+    paths = list(paths)
+    stored = load_runs(paths)
+    runs = stored if complete_seeds is None else complete_groups(stored, complete_seeds)
+    if not runs:
+        raise SettingError("--complete-seeds", "no group has every one of these seeds stored")
     out.mkdir(parents=True, exist_ok=True)
     fig_dir = out / figures
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -638,7 +750,7 @@ def write_report(
         f"{len(COVERAGE_SEEDS)} seeds per group (a group: one problem, variant and algorithm; "
         "the specs list more seeds).",
         "",
-        *coverage_table(runs, coverage_specs(runs)),
+        *coverage_table(stored, coverage_specs(stored)),
         "",
         "## Noise",
         "",
@@ -651,14 +763,19 @@ def write_report(
         "## Provenance",
         "",
         "Which code made the stored runs (`code` block of a run: digests of the sources it "
-        "executes and of its algorithm's, git commit; `localpbo_core/provenance.py`). "
-        "Per group the tables above say \"current\" (the algorithm's sources are today's), "
-        '"changed since" (they changed after the run was stored: a rerun may differ) or '
-        '"none stored" (stored before runs carried a code version: which code made it is '
-        "known only from the commit that added it). Groups made by other code than today's:",
+        "executes and of its algorithm's, git commit; `localpbo_core/provenance.py`). Runs "
+        "stored before runs carried one are dated by the commit that stored them "
+        "(`docs/results/stored_code.json`, `python -m localpbo_core.experiments.stored_code`): "
+        "its sources are the newest that can have made them. Per group the tables above say "
+        '"current" (the algorithm\'s sources are today\'s), "same behaviour" (they changed, '
+        "and re-runs with the old and today's code on one machine gave the same candidates "
+        'bit for bit, `docs/results/equivalent_code.json`), "changed since" (they changed '
+        'after the run was stored: a rerun may differ) or "none stored". Groups made by '
+        "other code than today's:",
         "",
         *provenance_table(runs),
         "",
+        *drift_section(paths),
         "## Compute time",
         "",
         "Optimizer seconds per run (ask and tell; evaluations and oracle excluded). The "
@@ -689,6 +806,7 @@ RESULTS_COMMAND = (
     "localpbo",
     "report",
     "docs/results",
+    "docs/pending",
     "--out",
     "docs",
     "--name",
@@ -699,6 +817,8 @@ RESULTS_COMMAND = (
     "docs/results/notes.md",
     "--title",
     "Results: localpbo next to the paper",
+    "--complete-seeds",
+    "0-9",
 )
 """The command that makes ``docs/RESULTS.md`` from the runs committed under ``docs/results``
 (run in the repository's root; ``docs/reproducing.md`` documents it word for word, and
@@ -712,7 +832,7 @@ def results_page_args(root: Path, out: Path | None = None) -> Any:
     from localpbo_core.arguments import report_parser
 
     args = report_parser().parse_args(list(RESULTS_COMMAND[1:]))
-    args.results = [str(root / r) for r in args.results]
+    args.results = [str(root / r) for r in args.results if (root / r).exists()]
     args.out = str(root / args.out if out is None else out)
     args.notes = str(root / args.notes)
     return args
@@ -734,7 +854,17 @@ def _report_of(args: Any) -> Path:
         figures=args.figures,
         notes=None if args.notes is None else Path(args.notes),
         title=args.title,
+        complete_seeds=_seeds_of(args.complete_seeds),
     )
+
+
+def _seeds_of(text: str | None) -> list[int] | None:
+    if text is None:
+        return None
+    try:
+        return parse_seeds(text)
+    except ValueError as err:
+        raise SettingError("--complete-seeds", str(err).removeprefix("--seeds: ")) from err
 
 
 def main_report(args: Any) -> int:

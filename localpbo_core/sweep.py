@@ -16,7 +16,10 @@
   ``OUT/runs/<run_id>.json.gz`` (``run_id`` = ``<problem>__<algorithm>[__<variant>]__seed<k>``):
   the content of ``localpbo bench``'s ``runs/*.json`` (schema ``localpbo/run/v1``: settings,
   candidates, answers, per-evaluation records) plus ``run`` (spec name, labels, seed,
-  within-model flag) and ``optimizer_seconds``. The driver writes it atomically (a temporary
+  within-model flag), ``optimizer_seconds``, ``code`` (which code made it,
+  :mod:`localpbo_core.provenance`) and ``effective_settings`` (the settings with every
+  optimizer option completed by the algorithm's defaults and the budget resolved, so a run
+  says what it ran even after a default changes). The driver writes it atomically (a temporary
   file in the same folder, then ``os.replace``), with a fixed gzip time stamp.
 * **Resume**: a run whose file exists (and holds the same settings) is finished and skipped;
   a run whose worker died is retried by Ray (``max_retries``); a run that raised is reported
@@ -91,6 +94,10 @@ def execute_run(plan: PlannedRun) -> dict[str, Any]:
     doc["run"] = plan.describe()
     doc["optimizer_seconds"] = sum(r.decision_seconds for r in trace.records)
     doc["code"] = code_block(plan.settings.algorithm)
+    effective = effective_settings(doc["settings"])
+    if effective is not None:
+        effective["budget"] = len(trace.records)
+    doc["effective_settings"] = effective
     return doc
 
 

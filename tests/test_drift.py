@@ -39,3 +39,61 @@ def test_stored_code_is_judged_against_today() -> None:
     assert compare(_doc(x, 1.0, today), _doc(x, 1.0)).algorithm_changed == "no"
     changed = compare(_doc(x, 1.0, older), _doc(x, 1.0))
     assert (changed.stored_code, changed.algorithm_changed) == ("abcdef1234+dirty", "yes")
+
+
+def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
+    """``docs/results/stored_code.json`` names committed runs without a code block, each
+    with a commit of this history that added exactly its bytes, and that commit's digests
+    as :func:`~localpbo_core.experiments.stored_code.code_at` computes them."""
+    import json
+    import subprocess
+
+    from localpbo_core.experiments.stored_code import code_at
+    from localpbo_core.provenance import ROOT, stored_by_commit
+    from localpbo_core.sweep import read_run
+
+    table = ROOT / "docs" / "results" / "stored_code.json"
+    runs = stored_by_commit(table)
+    assert len(runs) >= 2000
+    doc = json.loads(table.read_text())
+    for i, (path, (commit, _digests)) in enumerate(sorted(runs.items())):
+        assert path.is_file(), path
+        if i % 250:
+            continue
+        assert "code" not in read_run(path)
+        rel = path.relative_to(ROOT).as_posix()
+        blob = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", f"HEAD:{rel}"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        added = subprocess.run(
+            ["git", "-C", str(ROOT), "show", "--raw", "--no-abbrev", "--format=", commit],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        assert any(
+            line.split()[3] == blob and line.split()[4] == "A" for line in added.splitlines()
+        )
+    for commit in sorted(doc["commits"])[:2]:
+        recorded = doc["commits"][commit]
+        assert code_at(ROOT, commit, sorted(recorded["algorithms"])) == recorded
+
+
+def test_equivalent_code_records_name_committed_runs() -> None:
+    """Each re-run recorded in ``docs/results/equivalent_code.json`` names a committed run of
+    its algorithm and counts at most its candidates."""
+    import json
+
+    from localpbo_core.provenance import ROOT
+    from localpbo_core.sweep import read_run
+
+    table = ROOT / "docs" / "results" / "equivalent_code.json"
+    for entry in json.loads(table.read_text()):
+        doc = read_run(ROOT / entry["run"])
+        assert doc["settings"]["algorithm"] == entry["algorithm"]
+        assert entry["candidates"] == len(doc["candidates"])
+        assert 0 <= entry["identical"] <= entry["candidates"]
+        assert 0 <= entry["stored_identical"] <= entry["candidates"]

@@ -161,8 +161,123 @@ def test_provenance_per_run_group_and_spec() -> None:
     rows = provenance_table(runs)[2:]
     commit = f"{str(today['commit'])[:10]}{'+dirty' if today['dirty'] else ''}"
     assert rows[0] == (
-        f"| a | 3 | 3 | abcdef1234+dirty (1), {commit} (2) | hartmann6: turpbo | — |"
+        f"| a | 3 | 3 | 0 | abcdef1234+dirty (1), {commit} (2) | hartmann6: turpbo | — |"
         if "abcdef1234+dirty" < commit
-        else f"| a | 3 | 3 | {commit} (2), abcdef1234+dirty (1) | hartmann6: turpbo | — |"
+        else f"| a | 3 | 3 | 0 | {commit} (2), abcdef1234+dirty (1) | hartmann6: turpbo | — |"
     )
-    assert rows[1] == "| b | 1 | 0 | — | — | every group |"
+    assert rows[1] == "| b | 1 | 0 | 0 | — | — | every group |"
+
+
+def test_runs_without_code_are_dated_by_their_storing_commit(tmp_path) -> None:
+    """A run stored without a code block takes the digests of the commit that stored it
+    (``stored_code.json`` beside the runs); an ``equivalent_code.json`` pair that leads to
+    today's digest makes a changed run "same behaviour", a pair whose re-runs differed does
+    not."""
+    import gzip
+    import json
+
+    from localpbo_core.provenance import code_block
+    from localpbo_core.report import (
+        CODE_CHANGED,
+        CODE_CURRENT,
+        CODE_NONE,
+        CODE_SAME,
+        code_state,
+        load_runs,
+        provenance_table,
+    )
+
+    today = code_block("sobol")["algorithm_digest"]
+    runs = tmp_path / "spec" / "runs"
+    runs.mkdir(parents=True)
+
+    def write(name: str, seed: int) -> None:
+        doc = {
+            "schema": "localpbo/run/v1",
+            "settings": {"algorithm": "sobol", "problem": "hartmann6", "seed": seed},
+            "candidates": [],
+            "answers": [],
+            "records": [{"best_seen": 1.0, "cumulative": 1.0, "decision_seconds": 0.0}],
+            "run": {
+                "spec": "spec",
+                "problem_label": "hartmann6",
+                "algorithm_label": "sobol",
+                "variant": "",
+                "within_model": False,
+            },
+        }
+        with gzip.open(runs / name, "wt") as fh:
+            json.dump(doc, fh)
+
+    for seed, name in enumerate(["now.json.gz", "old.json.gz", "older.json.gz", "bare.json.gz"]):
+        write(name, seed)
+    digests = {"now": today, "old": "1" * 16, "older": "2" * 16}
+    (tmp_path / "stored_code.json").write_text(
+        json.dumps(
+            {
+                "schema": "localpbo/stored-code/v1",
+                "commits": {
+                    c: {"digest": "d", "algorithms": {"sobol": d}} for c, d in digests.items()
+                },
+                "runs": {f"spec/runs/{c}.json.gz": c for c in digests},
+            }
+        )
+    )
+    entry = {"algorithm": "sobol", "candidates": 5, "run": "x", "commit": "c"}
+    (tmp_path / "equivalent_code.json").write_text(
+        json.dumps(
+            [
+                {**entry, "from": "1" * 16, "to": today, "identical": 5},
+                {**entry, "from": "2" * 16, "to": today, "identical": 4},
+            ]
+        )
+    )
+    loaded = {r.seed: r for r in load_runs([tmp_path])}
+    assert [code_state(loaded[s]) for s in range(4)] == [
+        CODE_CURRENT,
+        CODE_SAME,
+        CODE_CHANGED,
+        CODE_NONE,
+    ]
+    assert loaded[1].code is not None and loaded[1].code["commit"] == "old"
+    assert provenance_table(list(loaded.values()))[2] == (
+        "| spec | 4 | 0 | 3 | now (1), old (1), older (1) | every group | every group |"
+    )
+
+
+def test_complete_groups_keep_only_groups_with_every_seed() -> None:
+    """``--complete-seeds``: a group enters the tables only with every seed stored; seeds
+    outside the set are left out; a bad seed list is refused naming the flag."""
+    from localpbo_core.report import StoredRun, _seeds_of, complete_groups
+    from localpbo_core.settings import SettingError
+
+    def run(problem: str, algorithm: str, seed: int) -> StoredRun:
+        return StoredRun(
+            spec="s",
+            problem_label=problem,
+            algorithm_label=algorithm,
+            variant="",
+            seed=seed,
+            within_model=False,
+            settings={"problem": problem, "algorithm": algorithm},
+            best_seen=np.zeros(1),
+            cumulative=np.zeros(1),
+            optimizer_seconds=0.0,
+        )
+
+    runs = [run("p", "a", s) for s in range(4)] + [run("p", "b", s) for s in (0, 2)]
+    runs += [run("q", "a", s) for s in (0, 1, 2)]
+    kept = complete_groups(runs, [0, 1, 2])
+    assert [(r.problem_label, r.algorithm_label, r.seed) for r in kept] == [
+        ("p", "a", 0),
+        ("p", "a", 1),
+        ("p", "a", 2),
+        ("q", "a", 0),
+        ("q", "a", 1),
+        ("q", "a", 2),
+    ]
+    assert complete_groups(runs, [5]) == []
+    assert _seeds_of("0-2") == [0, 1, 2] and _seeds_of(None) is None
+    with pytest.raises(SettingError) as err:
+        _seeds_of("3-x")
+    assert err.value.field == "--complete-seeds"

@@ -91,6 +91,23 @@ def assert_same_runs(spec, a: Path, b: Path) -> None:
         assert [one["code"][k] for k in digests] == [other["code"][k] for k in digests]
 
 
+def test_stored_runs_say_what_they_ran(spec, reference) -> None:
+    """Each stored run carries its settings completed by the defaults: every option of the
+    algorithm and the budget it ran."""
+    from localpbo_core.optimizers import optimizer_defaults
+
+    for plan in spec.runs():
+        doc = read_run(run_path(reference, plan))
+        effective = doc["effective_settings"]
+        assert effective["budget"] == len(doc["candidates"]) == len(doc["records"])
+        assert set(effective["optimizer_options"]) == set(
+            optimizer_defaults(plan.settings.algorithm)
+        ) - set(doc["settings"])
+        assert {k: v for k, v in effective.items() if k not in ("budget", "optimizer_options")} == {
+            k: v for k, v in doc["settings"].items() if k not in ("budget", "optimizer_options")
+        }
+
+
 def test_ray_sweep_equals_in_process(local_ray, spec, reference, tmp_path) -> None:
     result = sweep(spec, tmp_path, progress=False)
     assert sorted(result.finished) == sorted(p.run_id for p in spec.runs())

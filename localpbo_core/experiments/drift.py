@@ -8,15 +8,32 @@ algorithm's sources changed since, how many leading candidates are bit-identical
 coordinate difference at the first candidate that differs, and the final best-seen stored
 and now. Nothing is written.
 
-To tell drift by code from drift by machine, run the same command with an older checkout
-first on ``PYTHONPATH`` (``git archive <commit> | tar -x -C DIR``, then ``PYTHONPATH=DIR
-python localpbo_core/experiments/drift.py ...``): the run's own commit reproduces its stored
-candidates up to the machine's rounding, today's code may not.
+``--why`` tells drift by code from drift by machine: it also re-runs each stored run with the
+code of the commit that made it (the run's ``code.commit``, or for runs stored without one the
+commit that stored it, :mod:`localpbo_core.experiments.stored_code`), on this machine, from a
+``git archive`` of that commit run through its own ``localpbo sweep --in-process``. Then
+
+* stored against that commit here: what the *machine* changes (same code, other machine);
+* that commit here against today's code here: what the *code* changes (same machine).
+
+Floating-point sums depend on the machine's vector units and libraries, so a run made
+elsewhere may part from its re-run at the last bit of some candidate and, through the
+duels' noise draws and the model's refits, end elsewhere. ``--record FILE`` adds each
+``--why`` result to a JSON list (``docs/results/equivalent_code.json`` for the committed
+runs): the algorithm, the old and today's ``algorithm_digest``, and how many candidates the two
+codes share on this machine. A run whose two codes agree on every candidate shows that the
+old code's changes did not change that run's behaviour
+(:func:`localpbo_core.report.code_state` reads the file).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +66,139 @@ def rerun(doc: dict[str, Any]) -> dict[str, Any]:
     return execute_run(plan)
 
 
+def _identical(a: dict[str, Any], b: dict[str, Any]) -> tuple[int, float]:
+    """Leading candidates of ``a`` and ``b`` equal bit for bit, and the largest coordinate
+    gap at the first that differs (0 if none does)."""
+    xs = [np.asarray(c["native"], dtype=np.float64) for c in a["candidates"]]
+    ys = [np.asarray(c["native"], dtype=np.float64) for c in b["candidates"]]
+    same = 0
+    for x, y in zip(xs, ys, strict=False):
+        if x.shape == y.shape and np.array_equal(x, y):
+            same += 1
+            continue
+        return same, float(np.max(np.abs(x - y))) if x.shape == y.shape else float("inf")
+    return same, 0.0
+
+
+def making_commit(doc: dict[str, Any], path: Path) -> str | None:
+    """The commit whose code made the stored run: its ``code.commit``, else the commit that
+    stored the file (``docs/results/stored_code.json``)."""
+    code = doc.get("code")
+    if isinstance(code, dict) and code.get("commit") and not code.get("dirty"):
+        return str(code["commit"])
+    from localpbo_core.provenance import ROOT, stored_by_commit
+
+    table = ROOT / "docs" / "results" / "stored_code.json"
+    found = stored_by_commit(table).get(path.resolve())
+    return None if found is None else found[0]
+
+
+ARCHIVED = ("localpbo_core", "localpbo_msgs_py", "sims", "ros_ws/src")
+"""What a re-run with an older commit takes from it (the code, not the stored results)."""
+PACKAGE_FOLDERS = {
+    "localpbo_sims": "sims",
+    "localpbo_ros": "ros_ws/src/localpbo_ros/localpbo_ros",
+    "localpbo_examples": "ros_ws/src/localpbo_examples/localpbo_examples",
+}
+"""Import names whose folder has another name (``setup.py``'s ``package_dir``)."""
+
+
+def rerun_at(commit: str, doc: dict[str, Any]) -> dict[str, Any]:
+    """``doc``'s run made again by the code of ``commit`` on this machine: a ``git archive``
+    of it in a temporary folder, its own ``localpbo sweep --in-process`` on that run alone."""
+    from localpbo_core.provenance import ROOT
+    from localpbo_core.sweep import read_run
+
+    meta = doc["run"]
+    with tempfile.TemporaryDirectory(prefix="localpbo-drift-") as tmp:
+        tree = Path(tmp) / "tree"
+        tree.mkdir()
+        archive = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", commit, *ARCHIVED],
+            capture_output=True,
+            check=True,
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+        for name, folder in PACKAGE_FOLDERS.items():
+            if (tree / folder).is_dir():
+                (tree / name).symlink_to(folder)
+        out = Path(tmp) / "out"
+        args = ["sweep", str(meta["spec"]), "--out", str(out), "--in-process"]
+        args += ["--problems", str(meta["problem_label"])]
+        args += ["--algorithms", str(meta["algorithm_label"]), "--seeds", str(meta["seed"])]
+        if meta.get("variant"):
+            args += ["--variants", str(meta["variant"])]
+        env = {**os.environ, "PYTHONPATH": str(tree)}
+        code = "import sys; from localpbo_core.cli import main; sys.exit(main(sys.argv[1:]))"
+        subprocess.run(
+            [sys.executable, "-c", code, *args],
+            cwd=tree,
+            env=env,
+            check=True,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        return read_run(out / "runs" / f"{meta['run_id']}.json.gz")
+
+
+@dataclass(frozen=True)
+class Why:
+    """A stored run, its making commit's re-run here and today's re-run here
+    (module docstring, ``--why``)."""
+
+    run_id: str
+    algorithm: str
+    commit: str
+    old_digest: str
+    today_digest: str
+    candidates: int
+    machine_identical: int
+    code_identical: int
+    code_gap: float
+
+    def record(self, path: str) -> dict[str, Any]:
+        """The entry of ``equivalent_code.json`` (module docstring)."""
+        return {
+            "run": path,
+            "algorithm": self.algorithm,
+            "commit": self.commit,
+            "from": self.old_digest,
+            "to": self.today_digest,
+            "candidates": self.candidates,
+            "identical": self.code_identical,
+            "code_gap": self.code_gap,
+            "stored_identical": self.machine_identical,
+        }
+
+
+def why(path: Path) -> Why:
+    """The three-way comparison of ``--why`` for the stored run at ``path``."""
+    from localpbo_core.experiments.stored_code import code_at
+    from localpbo_core.provenance import ROOT, code_block
+    from localpbo_core.sweep import read_run
+
+    stored = read_run(path)
+    algorithm = str(stored["settings"]["algorithm"])
+    commit = making_commit(stored, path)
+    if commit is None:
+        raise ValueError(f"{path}: no commit known for this run")
+    old = rerun_at(commit, stored)
+    today = rerun(stored)
+    machine, _ = _identical(stored, old)
+    code, gap = _identical(old, today)
+    return Why(
+        run_id=str(stored["run"]["run_id"]),
+        algorithm=algorithm,
+        commit=commit,
+        old_digest=code_at(ROOT, commit, [algorithm])["algorithms"][algorithm],
+        today_digest=str(code_block(algorithm)["algorithm_digest"]),
+        candidates=len(stored["candidates"]),
+        machine_identical=machine,
+        code_identical=code,
+        code_gap=gap,
+    )
+
+
 def _stored_code(doc: dict[str, Any]) -> tuple[str, str]:
     code = doc.get("code")
     if not isinstance(code, dict):
@@ -64,23 +214,14 @@ def _stored_code(doc: dict[str, Any]) -> tuple[str, str]:
 
 def compare(stored: dict[str, Any], now: dict[str, Any]) -> Drift:
     """Where ``now`` (a re-run) departs from ``stored``."""
-    a = [np.asarray(c["native"], dtype=np.float64) for c in stored["candidates"]]
-    b = [np.asarray(c["native"], dtype=np.float64) for c in now["candidates"]]
-    identical = 0
-    gap = 0.0
-    for x, y in zip(a, b, strict=False):
-        if x.shape == y.shape and np.array_equal(x, y):
-            identical += 1
-            continue
-        gap = float(np.max(np.abs(x - y))) if x.shape == y.shape else float("inf")
-        break
+    identical, gap = _identical(stored, now)
     code, changed = _stored_code(stored)
     return Drift(
         run_id=str(stored["run"]["run_id"]),
         stored_code=code,
         algorithm_changed=changed,
         identical=identical,
-        candidates=len(a),
+        candidates=len(stored["candidates"]),
         first_gap=gap,
         stored_final=float(stored["records"][-1]["best_seen"]),
         now_final=float(now["records"][-1]["best_seen"]),
@@ -110,15 +251,57 @@ def main(argv: Sequence[str] | None = None) -> int:
         "candidates (nothing is written).",
     )
     parser.add_argument("runs", nargs="+", help="stored run files (OUT/runs/<run_id>.json.gz)")
+    parser.add_argument(
+        "--why",
+        action="store_true",
+        help="also re-run each with the code of the commit that made it, on this machine",
+    )
+    parser.add_argument(
+        "--record", default=None, help="with --why: add the results to this JSON list"
+    )
     args = parser.parse_args(argv)
     from localpbo_core.sweep import read_run
 
+    if args.why:
+        return _main_why(args.runs, args.record)
     drifts = []
     for path in args.runs:
         stored = read_run(Path(path))
         drifts.append(compare(stored, rerun(stored)))
         print(table(drifts[-1:])[-1], flush=True)
     print("\n".join(table(drifts)))
+    return 0
+
+
+def _main_why(paths: Sequence[str], record: str | None) -> int:
+    from localpbo_core.provenance import ROOT
+
+    print(
+        "| run | commit | candidates | stored = commit here | commit here = today here "
+        "| first gap (code) |"
+    )
+    print("| --- | --- | ---: | ---: | ---: | ---: |")
+    entries = []
+    for p in paths:
+        w = why(Path(p))
+        print(
+            f"| {w.run_id} | {w.commit[:10]} | {w.candidates} | {w.machine_identical} "
+            f"| {w.code_identical} | {w.code_gap:.3g} |",
+            flush=True,
+        )
+        rel = Path(p).resolve()
+        try:
+            name = rel.relative_to(ROOT).as_posix()
+        except ValueError:
+            name = Path(p).as_posix()
+        entries.append(w.record(name))
+    if record is not None:
+        target = Path(record)
+        old = json.loads(target.read_text()) if target.is_file() else []
+        names = {e["run"] + e["to"] for e in entries}
+        kept = [e for e in old if e["run"] + e["to"] not in names]
+        merged = sorted(kept + entries, key=lambda e: (e["algorithm"], e["run"], e["to"]))
+        target.write_text(json.dumps(merged, indent=1, sort_keys=True) + "\n")
     return 0
 
 
