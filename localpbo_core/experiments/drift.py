@@ -171,17 +171,24 @@ class Why:
         }
 
 
-def why(path: Path) -> Why:
-    """The three-way comparison of ``--why`` for the stored run at ``path``."""
+def why(path: Path, commit: str | None = None) -> Why:
+    """The three-way comparison of ``--why`` for the stored run at ``path``, with the code of
+    ``commit`` instead of the commit that made the run if given."""
     from localpbo_core.experiments.stored_code import code_at
     from localpbo_core.provenance import ROOT, code_block
     from localpbo_core.sweep import read_run
 
     stored = read_run(path)
     algorithm = str(stored["settings"]["algorithm"])
-    commit = making_commit(stored, path)
+    commit = commit or making_commit(stored, path)
     if commit is None:
         raise ValueError(f"{path}: no commit known for this run")
+    commit = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--verify", f"{commit}^{{commit}}"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     old = rerun_at(commit, stored)
     today = rerun(stored)
     machine, _ = _identical(stored, old)
@@ -259,11 +266,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--record", default=None, help="with --why: add the results to this JSON list"
     )
+    parser.add_argument(
+        "--commit",
+        default=None,
+        help="with --why: compare today's code with this commit's instead of the one that "
+        "made each run (e.g. the last commit before a refactoring)",
+    )
     args = parser.parse_args(argv)
     from localpbo_core.sweep import read_run
 
     if args.why:
-        return _main_why(args.runs, args.record)
+        return _main_why(args.runs, args.record, args.commit)
+    if args.commit is not None or args.record is not None:
+        parser.error("--commit and --record go with --why")
     drifts = []
     for path in args.runs:
         stored = read_run(Path(path))
@@ -273,7 +288,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def _main_why(paths: Sequence[str], record: str | None) -> int:
+def _main_why(paths: Sequence[str], record: str | None, commit: str | None) -> int:
     from localpbo_core.provenance import ROOT
 
     print(
@@ -283,7 +298,7 @@ def _main_why(paths: Sequence[str], record: str | None) -> int:
     print("| --- | --- | ---: | ---: | ---: | ---: |")
     entries = []
     for p in paths:
-        w = why(Path(p))
+        w = why(Path(p), commit)
         print(
             f"| {w.run_id} | {w.commit[:10]} | {w.candidates} | {w.machine_identical} "
             f"| {w.code_identical} | {w.code_gap:.3g} |",
