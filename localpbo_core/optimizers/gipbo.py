@@ -40,7 +40,8 @@ Beyond the paper (off by default; the paper's settings are the defaults):
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from typing import Unpack
 
 import numpy as np
 import torch
@@ -53,7 +54,7 @@ from localpbo_core.optimizers.gi_acquisition import (
     hypersphere_candidates,
     random_local_query,
 )
-from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
+from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer, LocalPhaseOptions
 from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.validation import SettingError, check_choice, check_float, check_int
 
@@ -77,6 +78,17 @@ def normalized_gradient_step(
     if length < min_step:
         step = step * (min_step / length)
     return step
+
+
+class GIPBOrOptions(LocalPhaseOptions, total=False):
+    """The options of :class:`GIPBOr`: GIPBO's (with their defaults) but those of the
+    acquisition."""
+
+    step_size: float
+    min_step: float
+    num_local_queries: int | None
+    search_bounds: tuple[float, float]
+    accept_step: str
 
 
 class GIPBO(LocalPhaseOptimizer):
@@ -111,8 +123,6 @@ class GIPBO(LocalPhaseOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         step_size: float = 0.5,
         min_step: float = 0.05,
         num_local_queries: int | None = None,
@@ -122,19 +132,10 @@ class GIPBO(LocalPhaseOptimizer):
         max_candidates: int = 512,
         likelihood_threshold: float = 0.1,
         virtual_opponent: str = "incumbent",
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
         accept_step: str = "always",
+        **local: Unpack[LocalPhaseOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **local)
         self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
         self.min_step = check_float("min_step", min_step, minimum=0.0)
         self.num_local_queries = (
@@ -252,32 +253,5 @@ class GIPBOr(GIPBO):
     name = "gipbor"
     _random_queries = True
 
-    def __init__(
-        self,
-        dim: int,
-        seed: int,
-        budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
-        step_size: float = 0.5,
-        min_step: float = 0.05,
-        num_local_queries: int | None = None,
-        search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
-        accept_step: str = "always",
-    ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            step_size=step_size,
-            min_step=min_step,
-            num_local_queries=num_local_queries,
-            search_bounds=search_bounds,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-            accept_step=accept_step,
-        )
+    def __init__(self, dim: int, seed: int, budget: int, **options: Unpack[GIPBOrOptions]) -> None:
+        super().__init__(dim, seed, budget, **options)
