@@ -107,9 +107,8 @@ class GIPBO(LocalPhaseOptimizer):
         likelihood_threshold: virtual preference likelihood threshold (table: 0.1).
         virtual_opponent: ``"incumbent"`` (default) or ``"center"`` (see the module docstring;
             the spelling ``"centre"`` is accepted too).
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
         accept_step: ``"always"`` (default, the paper's) or ``"duel"``: the step's point
             becomes the next center only if it wins a duel against the local incumbent, else
             the next phase starts at the local incumbent (beyond the paper; module docstring).

@@ -256,9 +256,8 @@ class PrefSQP(LocalPhaseOptimizer):
         line_search_resolution: grid size R (table: 100).
         num_features: random features of the Thompson sample path.
         eigenvalue_floor: relative floor of the eigenvalue modification.
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
         sampling_radius: ``"fixed"`` (default: the ball of radius ``epsilon``) or
             ``"lengthscale"`` (the ellipsoid of semi-axes ``radius_scale * l``; beyond the
             paper, module docstring).

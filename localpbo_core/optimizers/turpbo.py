@@ -108,9 +108,8 @@ class TuRPBO(PreferenceOptimizer):
             hyperparameters at every iteration. With k > 1 they are learned at every k-th
             iteration only and held at the last learned values in between (the Laplace MAP
             is still refit on all data every iteration). A speed option, not the paper's.
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
     """
 
     name = "turpbo"
