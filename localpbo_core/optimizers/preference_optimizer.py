@@ -80,6 +80,13 @@ class History:
     outcomes: tuple[DuelAnswer, ...]
 
 
+def _id_pairs(rows: list[list[int]]) -> np.ndarray:
+    """``rows`` of two candidate ids as an ``(m, 2)`` int64 array (``(0, 2)`` for none)."""
+    if not rows:
+        return np.empty((0, 2), dtype=np.int64)
+    return np.array(rows, dtype=np.int64)
+
+
 def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
     """A numpy Generator for one decision step, derived from ``(seed, step, extra)``.
 
@@ -233,10 +240,7 @@ class PreferenceOptimizer(abc.ABC):
     def comparisons(self) -> np.ndarray:
         """All accepted decisive outcomes as an (m, 2) int64 array of ``[winner, loser]``
         ids."""
-        rows = [[o.winner, o.loser] for o in self._outcomes if isinstance(o, Outcome)]
-        if not rows:
-            return np.empty((0, 2), dtype=np.int64)
-        return np.array(rows, dtype=np.int64)
+        return _id_pairs([[o.winner, o.loser] for o in self._outcomes if isinstance(o, Outcome)])
 
     def duel_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Every accepted answer in tell order: ``(m, 2)`` int64 rows (``[winner, loser]`` or,
@@ -251,10 +255,9 @@ class PreferenceOptimizer(abc.ABC):
     def ties(self) -> np.ndarray:
         """All accepted "can't tell" answers as a (k, 2) int64 array of ``[first, second]``
         ids."""
-        rows = [[o.first, o.second] for o in self._outcomes if isinstance(o, Indifferent)]
-        if not rows:
-            return np.empty((0, 2), dtype=np.int64)
-        return np.array(rows, dtype=np.int64)
+        return _id_pairs(
+            [[o.first, o.second] for o in self._outcomes if isinstance(o, Indifferent)]
+        )
 
     # ------------------------------------------------------------------ ask / tell
     def ask(self) -> Ask:
