@@ -11,6 +11,10 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from localpbo_msgs_py import Status
+from localpbo_msgs_py.bag import read_messages
+from localpbo_msgs_py.topics import STATUS
+
 HEAVY = ("numpy", "torch", "rclpy", "mujoco")
 """Shared objects of the heavy imports (their paths contain these names)."""
 
@@ -74,10 +78,6 @@ def interrupt(proc: subprocess.Popen[str], timeout_s: float) -> None:
 
 def wait_heard(bag: Path, nodes: set[str], timeout_s: float = 60.0) -> None:
     """Until the recorder has recorded a status of each of ``nodes`` in ``bag``."""
-    from localpbo_msgs_py import Status
-    from localpbo_msgs_py.bag import read_messages
-    from localpbo_msgs_py.topics import STATUS
-
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         heard = set()
