@@ -195,6 +195,16 @@ class BagWriter:
             publish_time_ns=publish_time_ns,
         )
 
+    def copy(self, rec: BagMessage, message: object | None = None) -> None:
+        """Append a read message ``rec`` with its original times (its ``message``, or
+        ``message`` in its place)."""
+        self.write(
+            rec.topic,
+            rec.message if message is None else message,
+            log_time_ns=rec.log_time_ns,
+            publish_time_ns=rec.publish_time_ns,
+        )
+
     def write_serialized(
         self,
         topic: str,

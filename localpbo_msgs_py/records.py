@@ -13,9 +13,11 @@ Unknown or duplicate keys are rejected.
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
-from typing import TypeVar
+from functools import partial
+from typing import ClassVar, Self, TypeVar
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
@@ -82,6 +84,48 @@ def _enum(cls: type[E], value: object, field: str) -> E:
     raise FieldError(field, R.MALFORMED, f"{shown!r} is not one of {allowed}")
 
 
+def _check_duel(duel: DuelRequest | DuelOutcome) -> None:
+    """Check the fields a duel request and its outcome share."""
+    check_run_id(duel.run_id)
+    check_id(duel.duel_id, "duel_id")
+    check_id(duel.first_id, "first_id")
+    check_id(duel.second_id, "second_id")
+    _check_distinct(duel.first_id, duel.second_id)
+
+
+def _duel_values(duel: DuelRequest | DuelOutcome) -> dict[str, str]:
+    """The keys a duel request and its outcome share, as text."""
+    return {
+        "run_id": duel.run_id,
+        "duel_id": str(duel.duel_id),
+        "first_id": str(duel.first_id),
+        "second_id": str(duel.second_id),
+    }
+
+
+class _StatusRecord(abc.ABC):
+    """A record carried by a DiagnosticStatus named :attr:`STATUS_NAME` (module docstring);
+    :meth:`decode` reads the status and hands its level and values to :meth:`_from_status`."""
+
+    STATUS_NAME: ClassVar[str]
+    SCHEMA: ClassVar[str]
+
+    @classmethod
+    def decode(cls, msg: object, *, expected_run_id: str | None = None) -> Self | DecodeError:
+        """Validate and decode."""
+        return guarded(cls.SCHEMA, partial(cls._read, msg, expected_run_id))
+
+    @classmethod
+    def _read(cls, msg: object, expected_run_id: str | None) -> Self:
+        level, _, values = read_status(msg, cls.STATUS_NAME)
+        return cls._from_status(level, values, expected_run_id)
+
+    @classmethod
+    @abc.abstractmethod
+    def _from_status(cls, level: int, v: dict[str, str], expected_run_id: str | None) -> Self:
+        """The record of a status's ``level`` and values ``v`` (FieldError if invalid)."""
+
+
 class EpisodeStatus(StrEnum):
     """Whether the episode ran (``ok``) or could not be evaluated (``failed``)."""
 
@@ -90,12 +134,15 @@ class EpisodeStatus(StrEnum):
 
 
 @dataclass(frozen=True)
-class EpisodeResult:
+class EpisodeResult(_StatusRecord):
     """The outcome of running one candidate's episode (simulator → oracle).
 
     Keys: ``run_id``, ``candidate_id``, ``status`` (``ok``|``failed``), ``episode_return``
     (finite float, iff ``ok``), ``error`` (non-empty text, iff ``failed``).
     """
+
+    STATUS_NAME = EPISODE_RESULT_NAME
+    SCHEMA = "episode_result"
 
     run_id: str
     candidate_id: int
@@ -148,39 +195,33 @@ class EpisodeResult:
         return make_status(EPISODE_RESULT_NAME, LEVEL_ERROR, self.error, values)
 
     @classmethod
-    def decode(
-        cls, msg: object, *, expected_run_id: str | None = None
-    ) -> EpisodeResult | DecodeError:
-        """Validate and decode."""
-
-        def body() -> EpisodeResult:
-            level, _, v = read_status(msg, EPISODE_RESULT_NAME)
-            require_keys(v, ("run_id", "candidate_id", "status"), ("episode_return", "error"))
-            run_id = check_run_id(v["run_id"])
-            check_expected_run(run_id, expected_run_id)
-            cid = parse_id(v["candidate_id"], "candidate_id")
-            status = _enum(EpisodeStatus, v["status"], "status")
-            if status is EpisodeStatus.OK:
-                require_keys(
-                    v,
-                    ("run_id", "candidate_id", "status", "episode_return"),
-                    context=" (must be absent when status is ok)",
-                )
-                _check_level(level, LEVEL_OK)
-                return cls.ok(run_id, cid, parse_float(v["episode_return"], "episode_return"))
+    def _from_status(
+        cls, level: int, v: dict[str, str], expected_run_id: str | None
+    ) -> EpisodeResult:
+        require_keys(v, ("run_id", "candidate_id", "status"), ("episode_return", "error"))
+        run_id = check_run_id(v["run_id"])
+        check_expected_run(run_id, expected_run_id)
+        cid = parse_id(v["candidate_id"], "candidate_id")
+        status = _enum(EpisodeStatus, v["status"], "status")
+        if status is EpisodeStatus.OK:
             require_keys(
                 v,
-                ("run_id", "candidate_id", "status", "error"),
-                context=" (must be absent when status is failed)",
+                ("run_id", "candidate_id", "status", "episode_return"),
+                context=" (must be absent when status is ok)",
             )
-            _check_level(level, LEVEL_ERROR)
-            return cls.failed(run_id, cid, v["error"])
-
-        return guarded("episode_result", body)
+            _check_level(level, LEVEL_OK)
+            return cls.ok(run_id, cid, parse_float(v["episode_return"], "episode_return"))
+        require_keys(
+            v,
+            ("run_id", "candidate_id", "status", "error"),
+            context=" (must be absent when status is failed)",
+        )
+        _check_level(level, LEVEL_ERROR)
+        return cls.failed(run_id, cid, v["error"])
 
 
 @dataclass(frozen=True)
-class DuelRequest:
+class DuelRequest(_StatusRecord):
     """Ask the oracle to compare two evaluated candidates (optimizer → oracle).
 
     Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (distinct candidate ids);
@@ -190,6 +231,9 @@ class DuelRequest:
     of the duel: requests that differ only in it compare equal.
     """
 
+    STATUS_NAME = DUEL_REQUEST_NAME
+    SCHEMA = "duel_request"
+
     run_id: str
     duel_id: int
     first_id: int
@@ -197,11 +241,7 @@ class DuelRequest:
     decision_seconds: float | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        check_run_id(self.run_id)
-        check_id(self.duel_id, "duel_id")
-        check_id(self.first_id, "first_id")
-        check_id(self.second_id, "second_id")
-        _check_distinct(self.first_id, self.second_id)
+        _check_duel(self)
         if self.decision_seconds is not None:
             _check_seconds(self.decision_seconds, "decision_seconds")
 
@@ -211,38 +251,27 @@ class DuelRequest:
 
     def encode(self) -> DiagnosticStatus:
         """The ROS message."""
-        values = {
-            "run_id": self.run_id,
-            "duel_id": str(self.duel_id),
-            "first_id": str(self.first_id),
-            "second_id": str(self.second_id),
-        }
+        values = _duel_values(self)
         if self.decision_seconds is not None:
             values["decision_seconds"] = format_float(self.decision_seconds)
         return make_status(DUEL_REQUEST_NAME, LEVEL_OK, "", values)
 
     @classmethod
-    def decode(
-        cls, msg: object, *, expected_run_id: str | None = None
-    ) -> DuelRequest | DecodeError:
-        """Validate and decode."""
-
-        def body() -> DuelRequest:
-            level, _, v = read_status(msg, DUEL_REQUEST_NAME)
-            require_keys(v, ("run_id", "duel_id", "first_id", "second_id"), ("decision_seconds",))
-            _check_level(level, LEVEL_OK)
-            run_id = check_run_id(v["run_id"])
-            check_expected_run(run_id, expected_run_id)
-            seconds = v.get("decision_seconds")
-            return cls(
-                run_id,
-                parse_id(v["duel_id"], "duel_id"),
-                parse_id(v["first_id"], "first_id"),
-                parse_id(v["second_id"], "second_id"),
-                None if seconds is None else parse_float(seconds, "decision_seconds"),
-            )
-
-        return guarded("duel_request", body)
+    def _from_status(
+        cls, level: int, v: dict[str, str], expected_run_id: str | None
+    ) -> DuelRequest:
+        require_keys(v, ("run_id", "duel_id", "first_id", "second_id"), ("decision_seconds",))
+        _check_level(level, LEVEL_OK)
+        run_id = check_run_id(v["run_id"])
+        check_expected_run(run_id, expected_run_id)
+        seconds = v.get("decision_seconds")
+        return cls(
+            run_id,
+            parse_id(v["duel_id"], "duel_id"),
+            parse_id(v["first_id"], "first_id"),
+            parse_id(v["second_id"], "second_id"),
+            None if seconds is None else parse_float(seconds, "decision_seconds"),
+        )
 
 
 class OutcomeKind(StrEnum):
@@ -256,7 +285,7 @@ class OutcomeKind(StrEnum):
 
 
 @dataclass(frozen=True)
-class DuelOutcome:
+class DuelOutcome(_StatusRecord):
     """The oracle's answer to a duel request (oracle → optimizer).
 
     Keys: ``run_id``, ``duel_id``, ``first_id``, ``second_id`` (echo the request), ``kind``
@@ -273,6 +302,9 @@ class DuelOutcome:
     are never reused). A retraction it cannot honour is counted (``retraction_refused``).
     """
 
+    STATUS_NAME = DUEL_OUTCOME_NAME
+    SCHEMA = "duel_outcome"
+
     run_id: str
     duel_id: int
     first_id: int
@@ -286,11 +318,7 @@ class DuelOutcome:
     note: str = ""
 
     def __post_init__(self) -> None:
-        check_run_id(self.run_id)
-        check_id(self.duel_id, "duel_id")
-        check_id(self.first_id, "first_id")
-        check_id(self.second_id, "second_id")
-        _check_distinct(self.first_id, self.second_id)
+        _check_duel(self)
         object.__setattr__(self, "kind", _enum(OutcomeKind, self.kind, "kind"))
         if self.answer_seconds is not None:
             seconds = check_finite(self.answer_seconds, "answer_seconds")
@@ -407,13 +435,7 @@ class DuelOutcome:
 
     def encode(self) -> DiagnosticStatus:
         """The ROS message."""
-        values = {
-            "run_id": self.run_id,
-            "duel_id": str(self.duel_id),
-            "first_id": str(self.first_id),
-            "second_id": str(self.second_id),
-            "kind": self.kind.value,
-        }
+        values = {**_duel_values(self), "kind": self.kind.value}
         level = LEVEL_OK
         if self.kind is OutcomeKind.DECISIVE:
             values["winner_id"] = str(self.winner_id)
@@ -429,71 +451,46 @@ class DuelOutcome:
         return make_status(DUEL_OUTCOME_NAME, level, self.reason, values)
 
     @classmethod
-    def decode(
-        cls, msg: object, *, expected_run_id: str | None = None
-    ) -> DuelOutcome | DecodeError:
-        """Validate and decode."""
-
-        def body() -> DuelOutcome:
-            level, _, v = read_status(msg, DUEL_OUTCOME_NAME)
-            base = ("run_id", "duel_id", "first_id", "second_id", "kind")
-            require_keys(
-                v, base, ("winner_id", "loser_id", "reason", "answer_seconds", "judge", "note")
+    def _from_status(
+        cls, level: int, v: dict[str, str], expected_run_id: str | None
+    ) -> DuelOutcome:
+        base = ("run_id", "duel_id", "first_id", "second_id", "kind")
+        require_keys(
+            v, base, ("winner_id", "loser_id", "reason", "answer_seconds", "judge", "note")
+        )
+        seconds = (
+            parse_float(v["answer_seconds"], "answer_seconds") if "answer_seconds" in v else None
+        )
+        timed: tuple[str, ...] = ("answer_seconds",) if seconds is not None else ()
+        timed += tuple(name for name in ("judge", "note") if name in v)
+        judge, note = v.get("judge", ""), v.get("note", "")
+        run_id = check_run_id(v["run_id"])
+        check_expected_run(run_id, expected_run_id)
+        duel_id = parse_id(v["duel_id"], "duel_id")
+        first = parse_id(v["first_id"], "first_id")
+        second = parse_id(v["second_id"], "second_id")
+        kind = _enum(OutcomeKind, v["kind"], "kind")
+        if kind in (OutcomeKind.DECISIVE, OutcomeKind.INDIFFERENT):
+            decisive = kind is OutcomeKind.DECISIVE
+            ids = ("winner_id", "loser_id") if decisive else ()
+            require_keys(v, (*base, *ids, *timed), context=f" (must be absent when kind is {kind})")
+            _check_level(level, LEVEL_OK)
+            return cls(
+                run_id,
+                duel_id,
+                first,
+                second,
+                kind,
+                parse_id(v["winner_id"], "winner_id") if decisive else None,
+                parse_id(v["loser_id"], "loser_id") if decisive else None,
+                answer_seconds=seconds,
+                judge=judge,
+                note=note,
             )
-            seconds = (
-                parse_float(v["answer_seconds"], "answer_seconds")
-                if "answer_seconds" in v
-                else None
-            )
-            timed: tuple[str, ...] = ("answer_seconds",) if seconds is not None else ()
-            timed += tuple(name for name in ("judge", "note") if name in v)
-            judge, note = v.get("judge", ""), v.get("note", "")
-            run_id = check_run_id(v["run_id"])
-            check_expected_run(run_id, expected_run_id)
-            duel_id = parse_id(v["duel_id"], "duel_id")
-            first = parse_id(v["first_id"], "first_id")
-            second = parse_id(v["second_id"], "second_id")
-            kind = _enum(OutcomeKind, v["kind"], "kind")
-            if kind is OutcomeKind.DECISIVE:
-                require_keys(
-                    v,
-                    (*base, "winner_id", "loser_id", *timed),
-                    context=" (must be absent when kind is decisive)",
-                )
-                _check_level(level, LEVEL_OK)
-                return cls(
-                    run_id,
-                    duel_id,
-                    first,
-                    second,
-                    OutcomeKind.DECISIVE,
-                    parse_id(v["winner_id"], "winner_id"),
-                    parse_id(v["loser_id"], "loser_id"),
-                    answer_seconds=seconds,
-                    judge=judge,
-                    note=note,
-                )
-            if kind is OutcomeKind.INDIFFERENT:
-                require_keys(
-                    v, (*base, *timed), context=" (must be absent when kind is indifferent)"
-                )
-                _check_level(level, LEVEL_OK)
-                return cls(
-                    run_id,
-                    duel_id,
-                    first,
-                    second,
-                    OutcomeKind.INDIFFERENT,
-                    answer_seconds=seconds,
-                    judge=judge,
-                    note=note,
-                )
-            if kind is OutcomeKind.RETRACTED:
-                require_keys(v, base, context=" (must be absent when kind is retracted)")
-                _check_level(level, LEVEL_OK)
-                return cls(run_id, duel_id, first, second, OutcomeKind.RETRACTED)
-            require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
-            _check_level(level, LEVEL_ERROR)
-            return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])
-
-        return guarded("duel_outcome", body)
+        if kind is OutcomeKind.RETRACTED:
+            require_keys(v, base, context=" (must be absent when kind is retracted)")
+            _check_level(level, LEVEL_OK)
+            return cls(run_id, duel_id, first, second, OutcomeKind.RETRACTED)
+        require_keys(v, (*base, "reason"), context=" (must be absent when kind is failed)")
+        _check_level(level, LEVEL_ERROR)
+        return cls(run_id, duel_id, first, second, OutcomeKind.FAILED, reason=v["reason"])

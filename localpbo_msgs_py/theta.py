@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypedDict, Unpack
 
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
@@ -78,17 +79,32 @@ def _theta_message(label: str, theta: Sequence[float]) -> Float64MultiArray:
     return msg
 
 
+class ThetaChecks(TypedDict, total=False):
+    """What a decoded theta message must match: its run (``expected_run_id``), its length
+    (``expected_dim``), inclusive bounds in task units (``lower``, ``upper``) and at most
+    ``max_len`` entries (default :data:`MAX_THETA_LEN`)."""
+
+    expected_run_id: str | None
+    expected_dim: int | None
+    lower: Sequence[float] | None
+    upper: Sequence[float] | None
+    max_len: int
+
+
 def _read_theta(
     msg: object,
     kind: str,
     keys: Sequence[str],
-    *,
-    expected_dim: int | None,
-    lower: Sequence[float] | None,
-    upper: Sequence[float] | None,
-    max_len: int,
     optional: Sequence[str] = (),
-) -> tuple[dict[str, str], tuple[float, ...]]:
+    *,
+    expected_run_id: str | None = None,
+    expected_dim: int | None = None,
+    lower: Sequence[float] | None = None,
+    upper: Sequence[float] | None = None,
+    max_len: int = MAX_THETA_LEN,
+) -> tuple[str, dict[str, str], tuple[float, ...]]:
+    """The run id (checked against ``expected_run_id``), the label's fields and theta of a
+    ``kind`` message."""
     check_type(msg, Float64MultiArray, TYPE_NAME)
     assert isinstance(msg, Float64MultiArray)
     dims = msg.layout.dim
@@ -119,7 +135,9 @@ def _read_theta(
     theta = check_vector(
         msg.data, "data", expected_len=expected_dim, lower=lower, upper=upper, max_len=max_len
     )
-    return fields, theta
+    run_id = check_run_id(fields["run"], "run")
+    check_expected_run(run_id, expected_run_id, "run")
+    return run_id, fields, theta
 
 
 @dataclass(frozen=True)
@@ -154,31 +172,12 @@ class CandidateMsg:
         return _theta_message(format_label(pairs), self.theta)
 
     @classmethod
-    def decode(
-        cls,
-        msg: object,
-        *,
-        expected_run_id: str | None = None,
-        expected_dim: int | None = None,
-        lower: Sequence[float] | None = None,
-        upper: Sequence[float] | None = None,
-        max_len: int = MAX_THETA_LEN,
-    ) -> CandidateMsg | DecodeError:
-        """Validate and decode; bounds are in task units and inclusive."""
+    def decode(cls, msg: object, **checks: Unpack[ThetaChecks]) -> CandidateMsg | DecodeError:
+        """Validate and decode (see :class:`ThetaChecks`)."""
 
         def body() -> CandidateMsg:
-            fields, theta = _read_theta(
-                msg,
-                "candidate",
-                ("kind", "run", "candidate"),
-                expected_dim=expected_dim,
-                lower=lower,
-                upper=upper,
-                max_len=max_len,
-                optional=("worker",),
-            )
-            run_id = check_run_id(fields["run"], "run")
-            check_expected_run(run_id, expected_run_id, "run")
+            keys = ("kind", "run", "candidate")
+            run_id, fields, theta = _read_theta(msg, "candidate", keys, ("worker",), **checks)
             cid = parse_id(fields["candidate"], "candidate")
             worker = check_run_id(fields["worker"], "worker") if "worker" in fields else ""
             return cls(run_id, cid, theta, worker)
@@ -217,30 +216,12 @@ class Incumbent:
         return _theta_message(label, self.theta)
 
     @classmethod
-    def decode(
-        cls,
-        msg: object,
-        *,
-        expected_run_id: str | None = None,
-        expected_dim: int | None = None,
-        lower: Sequence[float] | None = None,
-        upper: Sequence[float] | None = None,
-        max_len: int = MAX_THETA_LEN,
-    ) -> Incumbent | DecodeError:
-        """Validate and decode; bounds are in task units and inclusive."""
+    def decode(cls, msg: object, **checks: Unpack[ThetaChecks]) -> Incumbent | DecodeError:
+        """Validate and decode (see :class:`ThetaChecks`)."""
 
         def body() -> Incumbent:
-            fields, theta = _read_theta(
-                msg,
-                "incumbent",
-                ("kind", "run", "candidate", "duels"),
-                expected_dim=expected_dim,
-                lower=lower,
-                upper=upper,
-                max_len=max_len,
-            )
-            run_id = check_run_id(fields["run"], "run")
-            check_expected_run(run_id, expected_run_id, "run")
+            keys = ("kind", "run", "candidate", "duels")
+            run_id, fields, theta = _read_theta(msg, "incumbent", keys, **checks)
             cid = parse_id(fields["candidate"], "candidate")
             n_duels = parse_id(fields["duels"], "duels")
             return cls(run_id, cid, theta, n_duels)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from localpbo_core.benchmarks.hostile_space_files import alias_bomb
 from localpbo_core.space import MAX_SPACE_BYTES, ParameterSpace, load_space, parse_space
 from localpbo_core.validation import SettingError
 
@@ -130,18 +131,6 @@ def test_from_native_refuses_values_outside_the_box() -> None:
 
 
 # ----------------------------------------------------------------- hostile files
-
-
-def alias_bomb(field: str, levels: int = 9) -> str:
-    """A billion-laughs space file: ``field`` holds a list whose items define the anchors,
-    level k being 9 aliases of level k - 1 (9**9 ≈ 3.9e8 leaves once expanded)."""
-    items = ['&a0 "lol"'] + [
-        f"&a{k} [" + ", ".join([f"*a{k - 1}"] * 9) + "]" for k in range(1, levels + 1)
-    ]
-    bomb = "[" + ", ".join(items) + "]"
-    if field == "description":
-        return f"parameters:\n  - {{name: kd, lower: 0, upper: 1, description: {bomb}}}\n"
-    return f"{field}: {bomb}\nparameters:\n  - {{name: kd, lower: 0, upper: 1}}\n"
 
 
 @pytest.mark.timeout(60)

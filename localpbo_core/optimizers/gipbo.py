@@ -40,7 +40,8 @@ Beyond the paper (off by default; the paper's settings are the defaults):
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from typing import Unpack
 
 import numpy as np
 import torch
@@ -53,7 +54,7 @@ from localpbo_core.optimizers.gi_acquisition import (
     hypersphere_candidates,
     random_local_query,
 )
-from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
+from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer, LocalPhaseOptions
 from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.validation import SettingError, check_choice, check_float, check_int
 
@@ -79,6 +80,17 @@ def normalized_gradient_step(
     return step
 
 
+class GIPBOrOptions(LocalPhaseOptions, total=False):
+    """The options of :class:`GIPBOr`: GIPBO's (with their defaults) but those of the
+    acquisition."""
+
+    step_size: float
+    min_step: float
+    num_local_queries: int | None
+    search_bounds: tuple[float, float]
+    accept_step: str
+
+
 class GIPBO(LocalPhaseOptimizer):
     """GIPBO (App. C.2, Alg. GIPBO) behind the ask/tell contract.
 
@@ -95,9 +107,8 @@ class GIPBO(LocalPhaseOptimizer):
         likelihood_threshold: virtual preference likelihood threshold (table: 0.1).
         virtual_opponent: ``"incumbent"`` (default) or ``"center"`` (see the module docstring;
             the spelling ``"centre"`` is accepted too).
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
         accept_step: ``"always"`` (default, the paper's) or ``"duel"``: the step's point
             becomes the next center only if it wins a duel against the local incumbent, else
             the next phase starts at the local incumbent (beyond the paper; module docstring).
@@ -111,8 +122,6 @@ class GIPBO(LocalPhaseOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         step_size: float = 0.5,
         min_step: float = 0.05,
         num_local_queries: int | None = None,
@@ -122,19 +131,10 @@ class GIPBO(LocalPhaseOptimizer):
         max_candidates: int = 512,
         likelihood_threshold: float = 0.1,
         virtual_opponent: str = "incumbent",
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
         accept_step: str = "always",
+        **local: Unpack[LocalPhaseOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **local)
         self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)
         self.min_step = check_float("min_step", min_step, minimum=0.0)
         self.num_local_queries = (
@@ -252,32 +252,5 @@ class GIPBOr(GIPBO):
     name = "gipbor"
     _random_queries = True
 
-    def __init__(
-        self,
-        dim: int,
-        seed: int,
-        budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
-        step_size: float = 0.5,
-        min_step: float = 0.05,
-        num_local_queries: int | None = None,
-        search_bounds: tuple[float, float] = DEFAULT_BOUNDS,
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
-        accept_step: str = "always",
-    ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            step_size=step_size,
-            min_step=min_step,
-            num_local_queries=num_local_queries,
-            search_bounds=search_bounds,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-            accept_step=accept_step,
-        )
+    def __init__(self, dim: int, seed: int, budget: int, **options: Unpack[GIPBOrOptions]) -> None:
+        super().__init__(dim, seed, budget, **options)

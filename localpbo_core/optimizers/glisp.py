@@ -54,14 +54,19 @@ import contextlib
 import importlib
 import inspect
 import sys
-from collections.abc import Callable, Iterator, Sequence
-from typing import Any, Protocol, cast
+from collections.abc import Callable, Iterator
+from typing import Any, Protocol, Unpack, cast
 
 import numpy as np
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
-from localpbo_core.validation import SettingError, check_float, check_int
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    RunOptions,
+    check_one_per_ask,
+    step_generator,
+)
+from localpbo_core.validation import check_float, check_int
 
 #: Tag mixed into the seed of GLISp's extra random initial points.
 GLISP_INIT_TAG = 0x611F
@@ -147,28 +152,16 @@ class GLISpOptimizer(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         n_initial_random: int = 10,
         delta: float = 0.5,
         pso_iters: int = 2000,
         pso_swarm_size: int = 20,
         expected_max_evals: int | None = 100,
         batch_size: int = 1,
-        tie_threshold: float = 0.0,
+        **run: Unpack[RunOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            tie_threshold=tie_threshold,
-        )
-        if isinstance(batch_size, bool) or batch_size != 1:
-            raise SettingError(
-                "batch_size", f"GLISp queries one point at a time, got {batch_size!r}"
-            )
+        super().__init__(dim, seed, budget, **run)
+        check_one_per_ask(batch_size, "GLISp queries one point at a time")
         n_initial_random = check_int("n_initial_random", n_initial_random, minimum=2)
         pso_iters = check_int("pso_iters", pso_iters)
         pso_swarm_size = check_int("pso_swarm_size", pso_swarm_size)

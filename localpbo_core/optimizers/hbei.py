@@ -69,18 +69,25 @@ likelihood of :mod:`localpbo_core.surrogate.ordinal`, sampled as in
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
+from typing import Unpack
 
 import numpy as np
 import torch
 from scipy.special import ndtr
 
 from localpbo_core.optimizers.acquisition import _lbfgsb_multistart
-from localpbo_core.optimizers.preference_optimizer import KingOfTheHillOptimizer, step_generator
+from localpbo_core.optimizers.preference_optimizer import (
+    KingOfTheHillOptimizer,
+    RunOptions,
+    check_multistart,
+    check_one_per_ask,
+    step_generator,
+)
 from localpbo_core.optimizers.surrogate_refit import check_hyperparameters
 from localpbo_core.surrogate import PairwiseGPSurrogate, Surrogate
 from localpbo_core.surrogate.skew_gp import ConditionedGP, DuelPosteriorChain
-from localpbo_core.validation import SettingError, check_float, check_int
+from localpbo_core.validation import check_float, check_int
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 #: Takeno et al.'s fixed kernel variance 1 and preference noise std 0.01, in the units of this
@@ -135,8 +142,6 @@ class HBEI(KingOfTheHillOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         batch_size: int = 1,
         num_raw_samples: int = 1024,
         num_restarts: int = 5,
@@ -144,31 +149,19 @@ class HBEI(KingOfTheHillOptimizer):
         steps_per_iteration: int = 1000,
         hyperparameter_refit_every: int = 10,
         outputscale: float | None = TAKENO_OUTPUTSCALE,
-        tie_threshold: float = 0.0,
         hyperparameters: Mapping[str, object] | None = None,
+        **run: Unpack[RunOptions],
     ) -> None:
-        if isinstance(batch_size, bool) or batch_size != 1:
-            raise SettingError(
-                "batch_size", f"HB-EI proposes one point per iteration, got {batch_size!r}"
-            )
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            batch_size=1,
-            tie_threshold=tie_threshold,
+        check_one_per_ask(batch_size, "HB-EI proposes one point per iteration")
+        super().__init__(dim, seed, budget, batch_size=1, **run)
+        self.num_restarts, self.num_raw_samples = check_multistart(
+            num_restarts, num_raw_samples, spare=1
         )
-        self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
-        self.num_restarts = check_int("num_restarts", num_restarts)
         self.burn_in = check_int("burn_in", burn_in, minimum=0)
         self.steps_per_iteration = check_int("steps_per_iteration", steps_per_iteration, 0)
         self.hyperparameter_refit_every = check_int(
             "hyperparameter_refit_every", hyperparameter_refit_every
         )
-        if self.num_restarts > self.num_raw_samples + 1:
-            raise SettingError("num_restarts", "must not exceed num_raw_samples + 1")
         self.outputscale = (
             None
             if outputscale is None

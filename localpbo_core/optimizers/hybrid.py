@@ -46,14 +46,14 @@ asks one candidate.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from typing import Unpack
 
 import numpy as np
 import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, DuelAnswer
 from localpbo_core.optimizers.prefsqp import kernel_normalized_step, negative_definite_modification
-from localpbo_core.optimizers.turpbo import TuRPBO
+from localpbo_core.optimizers.turpbo import TuRPBO, TuRPBOOptions
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
 from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import check_choice, check_float, check_int
@@ -101,17 +101,6 @@ class Hybrid(TuRPBO):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
-        batch_size: int = 1,
-        acquisition: str = "ts",
-        num_raw_samples: int = 1024,
-        num_restarts: int = 5,
-        num_features: int = 1024,
-        num_mc_samples: int = 512,
-        hyperparameter_refit_every: int = 1,
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
         confidence: float = 1.0,
         local_direction: str = "gradient",
         step_size: float = 0.5,
@@ -119,23 +108,9 @@ class Hybrid(TuRPBO):
         cooldown: int = 4,
         eigenvalue_floor: float = 1e-6,
         handover_length: float = 0.0,
+        **turpbo: Unpack[TuRPBOOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            batch_size=batch_size,
-            acquisition=acquisition,
-            num_raw_samples=num_raw_samples,
-            num_restarts=num_restarts,
-            num_features=num_features,
-            num_mc_samples=num_mc_samples,
-            hyperparameter_refit_every=hyperparameter_refit_every,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **turpbo)
         self.confidence = check_float("confidence", confidence, minimum=0.0)
         self.local_direction = check_choice("local_direction", local_direction, LOCAL_DIRECTIONS)
         self.step_size = check_float("step_size", step_size, minimum=0.0, minimum_open=True)

@@ -32,15 +32,22 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Mapping, Sequence
+from typing import Unpack
 
 import numpy as np
 import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
+from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, RunOptions
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.surrogate import Surrogate
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
+
+
+class LocalPhaseOptions(RunOptions, total=False):
+    """:class:`RunOptions` and the ``hyperparameters`` of :class:`LocalPhaseOptimizer`."""
+
+    hyperparameters: Mapping[str, object] | None
 
 
 class LocalPhaseOptimizer(PreferenceOptimizer):
@@ -56,21 +63,12 @@ class LocalPhaseOptimizer(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
+        **run: Unpack[RunOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            tie_threshold=tie_threshold,
-        )
-        self._refitter = SurrogateRefitter(
-            1, check_hyperparameters(hyperparameters, self.dim), self.tie_threshold
+        super().__init__(dim, seed, budget, **run)
+        self._refitter = SurrogateRefitter.for_options(
+            1, hyperparameters, self.dim, self.tie_threshold
         )
         self._center_id: int | None = None
         self._center_theta: np.ndarray | None = None

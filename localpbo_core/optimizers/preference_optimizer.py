@@ -29,7 +29,7 @@ from __future__ import annotations
 import abc
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
@@ -80,6 +80,13 @@ class History:
     outcomes: tuple[DuelAnswer, ...]
 
 
+def _id_pairs(rows: list[list[int]]) -> np.ndarray:
+    """``rows`` of two candidate ids as an ``(m, 2)`` int64 array (``(0, 2)`` for none)."""
+    if not rows:
+        return np.empty((0, 2), dtype=np.int64)
+    return np.array(rows, dtype=np.int64)
+
+
 def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
     """A numpy Generator for one decision step, derived from ``(seed, step, extra)``.
 
@@ -87,6 +94,42 @@ def step_generator(seed: int, step: int, *extra: int) -> np.random.Generator:
     the same outcomes reproduce the same candidates bit for bit.
     """
     return np.random.default_rng(np.random.SeedSequence([seed, STEP_TAG, step, *extra]))
+
+
+class RunOptions(TypedDict, total=False):
+    """The options every algorithm takes, handed on to :class:`PreferenceOptimizer` (see its
+    Args for their meaning and defaults)."""
+
+    initial_design: int
+    warm_start: Sequence[float] | np.ndarray | None
+    tie_threshold: float
+
+
+class BatchOptions(RunOptions, total=False):
+    """:class:`RunOptions` and the ``batch_size`` of :class:`KingOfTheHillOptimizer`."""
+
+    batch_size: int
+
+
+def check_multistart(
+    num_restarts: object, num_raw_samples: object, spare: int = 0
+) -> tuple[int, int]:
+    """``(num_restarts, num_raw_samples)`` of a multistart maximisation whose starts are the
+    best of the raw samples and ``spare`` other points: integers >= 1, and no more starts
+    than there are points."""
+    raw = check_int("num_raw_samples", num_raw_samples)
+    restarts = check_int("num_restarts", num_restarts)
+    if restarts > raw + spare:
+        limit = f"num_raw_samples + {spare}" if spare else "num_raw_samples"
+        raise SettingError("num_restarts", f"must not exceed {limit}")
+    return restarts, raw
+
+
+def check_one_per_ask(batch_size: object, refusal: str) -> None:
+    """Refuse a ``batch_size`` other than 1 for an algorithm that proposes one point per ask;
+    ``refusal`` says so in its words."""
+    if isinstance(batch_size, bool) or batch_size != 1:
+        raise SettingError("batch_size", f"{refusal}, got {batch_size!r}")
 
 
 class PreferenceOptimizer(abc.ABC):
@@ -197,10 +240,7 @@ class PreferenceOptimizer(abc.ABC):
     def comparisons(self) -> np.ndarray:
         """All accepted decisive outcomes as an (m, 2) int64 array of ``[winner, loser]``
         ids."""
-        rows = [[o.winner, o.loser] for o in self._outcomes if isinstance(o, Outcome)]
-        if not rows:
-            return np.empty((0, 2), dtype=np.int64)
-        return np.array(rows, dtype=np.int64)
+        return _id_pairs([[o.winner, o.loser] for o in self._outcomes if isinstance(o, Outcome)])
 
     def duel_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Every accepted answer in tell order: ``(m, 2)`` int64 rows (``[winner, loser]`` or,
@@ -215,10 +255,9 @@ class PreferenceOptimizer(abc.ABC):
     def ties(self) -> np.ndarray:
         """All accepted "can't tell" answers as a (k, 2) int64 array of ``[first, second]``
         ids."""
-        rows = [[o.first, o.second] for o in self._outcomes if isinstance(o, Indifferent)]
-        if not rows:
-            return np.empty((0, 2), dtype=np.int64)
-        return np.array(rows, dtype=np.int64)
+        return _id_pairs(
+            [[o.first, o.second] for o in self._outcomes if isinstance(o, Indifferent)]
+        )
 
     # ------------------------------------------------------------------ ask / tell
     def ask(self) -> Ask:
@@ -403,23 +442,9 @@ class KingOfTheHillOptimizer(PreferenceOptimizer):
     """
 
     def __init__(
-        self,
-        dim: int,
-        seed: int,
-        budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
-        batch_size: int = 1,
-        tie_threshold: float = 0.0,
+        self, dim: int, seed: int, budget: int, batch_size: int = 1, **run: Unpack[RunOptions]
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **run)
         self.batch_size = check_int("batch_size", batch_size)
 
     def _propose(self, remaining: int) -> Ask:

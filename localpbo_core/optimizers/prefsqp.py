@@ -81,7 +81,7 @@ to it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from typing import Unpack
 
 import numpy as np
 import scipy.optimize
@@ -90,7 +90,7 @@ import torch
 
 from localpbo_core.optimizers.acquisition import eubo_from_moments
 from localpbo_core.optimizers.base import Candidate, DuelAnswer, Outcome
-from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer
+from localpbo_core.optimizers.local_phase import LocalPhaseOptimizer, LocalPhaseOptions
 from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.surrogate import Surrogate
 from localpbo_core.validation import check_choice, check_float, check_int
@@ -256,9 +256,8 @@ class PrefSQP(LocalPhaseOptimizer):
         line_search_resolution: grid size R (table: 100).
         num_features: random features of the Thompson sample path.
         eigenvalue_floor: relative floor of the eigenvalue modification.
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
         sampling_radius: ``"fixed"`` (default: the ball of radius ``epsilon``) or
             ``"lengthscale"`` (the ellipsoid of semi-axes ``radius_scale * l``; beyond the
             paper, module docstring).
@@ -278,8 +277,6 @@ class PrefSQP(LocalPhaseOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         epsilon: float = 0.05,
         num_local_samples: int | None = None,
         line_search: str = "thompson",
@@ -288,24 +285,15 @@ class PrefSQP(LocalPhaseOptimizer):
         line_search_resolution: int = 100,
         num_features: int = 1024,
         eigenvalue_floor: float = 1e-6,
-        hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
         sampling_radius: str = "fixed",
         radius_scale: float = 1.0,
         step_normalization: str = "none",
         step_size: float = 0.5,
         duel_points: int = 3,
         accept_step: str = "always",
+        **local: Unpack[LocalPhaseOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            hyperparameters=hyperparameters,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **local)
         self.epsilon = check_float("epsilon", epsilon, minimum=0.0, minimum_open=True)
         self.num_local_samples = (
             self.dim

@@ -31,7 +31,8 @@ selection of initial conditions that BoTorch draws from torch's global RNG.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
+from typing import Unpack
 
 import numpy as np
 import torch
@@ -46,10 +47,15 @@ from botorch.utils.sampling import manual_seed
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    RunOptions,
+    check_multistart,
+    step_generator,
+)
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.surrogate.protocol import Surrogate
-from localpbo_core.validation import SettingError, check_int
+from localpbo_core.validation import check_int
 
 
 class QEUBO(PreferenceOptimizer):
@@ -65,9 +71,8 @@ class QEUBO(PreferenceOptimizer):
             hyperparameters at every iteration. With k > 1 they are learned at every k-th
             iteration only and held in between (the Laplace MAP is still refit on all data
             every iteration). A speed option, not the paper's (same as TuRPBO's).
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
     """
 
     name = "qeubo"
@@ -77,38 +82,22 @@ class QEUBO(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         batch_size: int = 1,
         num_restarts: int = 5,
         num_raw_samples: int = 1024,
         num_mc_samples: int = 256,
         hyperparameter_refit_every: int = 1,
         hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
+        **run: Unpack[RunOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **run)
         self.batch_size = check_int("batch_size", batch_size)
-        self.num_restarts = check_int("num_restarts", num_restarts)
-        self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
+        self.num_restarts, self.num_raw_samples = check_multistart(num_restarts, num_raw_samples)
         self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
-        self.hyperparameter_refit_every = check_int(
-            "hyperparameter_refit_every", hyperparameter_refit_every
+        self._refitter = SurrogateRefitter.for_options(
+            hyperparameter_refit_every, hyperparameters, self.dim, self.tie_threshold
         )
-        if self.num_restarts > self.num_raw_samples:
-            raise SettingError("num_restarts", "must not exceed num_raw_samples")
-        self._refitter = SurrogateRefitter(
-            self.hyperparameter_refit_every,
-            check_hyperparameters(hyperparameters, self.dim),
-            self.tie_threshold,
-        )
+        self.hyperparameter_refit_every = self._refitter.every
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
         self._next_duels: list[Duel] = []

@@ -2,12 +2,18 @@
 
 Algorithms are registered by import path and imported only when built or inspected, so
 listing them (``localpbo bench --help``) loads neither torch nor BoTorch.
+
+An algorithm's options are the keyword parameters of its factory (besides dim, seed, budget),
+in order. A class whose ``__init__`` takes ``**options: Unpack[SomeOptions]`` and hands them
+on to its base class has the keys of that ``TypedDict`` as options in that place, each with
+the default of the nearest base class whose ``__init__`` names it.
 """
 
 from __future__ import annotations
 
 import importlib
 import inspect
+import typing
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -48,19 +54,50 @@ def available_optimizers() -> list[str]:
 
 def optimizer_options(name: str) -> list[str]:
     """Keyword options accepted by algorithm ``name`` (besides dim, seed, budget)."""
-    params = inspect.signature(_lookup(name)).parameters
-    return [p for p in params if p not in _RUN_ARGUMENTS]
+    return [p.name for p in _options(_lookup(name))]
 
 
 def optimizer_defaults(name: str) -> dict[str, object]:
     """Default value of each keyword option of algorithm ``name`` that has one (besides dim,
     seed, budget): the options a run gets when it does not name them."""
-    params = inspect.signature(_lookup(name)).parameters
-    return {
-        key: p.default
-        for key, p in params.items()
-        if key not in _RUN_ARGUMENTS and p.default is not inspect.Parameter.empty
-    }
+    return {p.name: p.default for p in _options(_lookup(name)) if p.default is not p.empty}
+
+
+def _options(factory: Factory) -> list[inspect.Parameter]:
+    """The keyword parameters of ``factory`` besides the run arguments, an
+    ``Unpack[TypedDict]`` variadic keyword standing for its keys (module docstring)."""
+    options: list[inspect.Parameter] = []
+    for p in inspect.signature(factory).parameters.values():
+        if p.name in _RUN_ARGUMENTS:
+            continue
+        if p.kind is p.VAR_KEYWORD and isinstance(factory, type):
+            init = next(vars(c)["__init__"] for c in factory.__mro__ if "__init__" in vars(c))
+            options.extend(_inherited(factory, key) for key in _unpacked_keys(init, p))
+        elif p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+            options.append(p)
+    return options
+
+
+def _unpacked_keys(init: Callable[..., object], p: inspect.Parameter) -> list[str]:
+    """The keys of the ``TypedDict`` in ``**p: Unpack[TypedDict]`` of ``init``."""
+    annotation = p.annotation
+    if isinstance(annotation, str):
+        annotation = eval(annotation, getattr(init, "__globals__", {}))
+    if typing.get_origin(annotation) is not typing.Unpack:
+        raise TypeError(f"**{p.name} of {init.__qualname__} is not Unpack[TypedDict]")
+    (options,) = typing.get_args(annotation)
+    return list(options.__annotations__)
+
+
+def _inherited(cls: type, key: str) -> inspect.Parameter:
+    """Option ``key`` as the nearest base class of ``cls`` whose ``__init__`` names it."""
+    for base in cls.__mro__[1:]:
+        if "__init__" not in vars(base):
+            continue
+        p = inspect.signature(vars(base)["__init__"]).parameters.get(key)
+        if p is not None and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+            return p
+    raise TypeError(f"no base class of {cls.__qualname__} names option {key!r}")
 
 
 def _lookup(name: str) -> Factory:

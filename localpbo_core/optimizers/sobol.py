@@ -7,12 +7,12 @@ order and each is dueled against the incumbent (king of the hill, App. D.1).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from typing import Unpack
 
 import numpy as np
 from scipy.stats import qmc
 
-from localpbo_core.optimizers.preference_optimizer import KingOfTheHillOptimizer
+from localpbo_core.optimizers.preference_optimizer import BatchOptions, KingOfTheHillOptimizer
 
 #: Tag mixed into the seed of the Sobol scrambling.
 SOBOL_TAG = 0x5B01
@@ -28,25 +28,8 @@ class SobolOptimizer(KingOfTheHillOptimizer):
 
     name = "sobol"
 
-    def __init__(
-        self,
-        dim: int,
-        seed: int,
-        budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
-        batch_size: int = 1,
-        tie_threshold: float = 0.0,
-    ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            batch_size=batch_size,
-            tie_threshold=tie_threshold,
-        )
+    def __init__(self, dim: int, seed: int, budget: int, **options: Unpack[BatchOptions]) -> None:
+        super().__init__(dim, seed, budget, **options)
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, SOBOL_TAG]))
         self._engine = qmc.Sobol(d=self.dim, scramble=True, rng=rng)
 

@@ -102,6 +102,14 @@ class SurrogateRefitter:
         self.fits = 0
         self.surrogate: Surrogate | None = None
 
+    @classmethod
+    def for_options(
+        cls, every: int, hyperparameters: object, dim: int, tie_threshold: float
+    ) -> SurrogateRefitter:
+        """The refitter of an optimizer's options ``hyperparameter_refit_every`` and
+        ``hyperparameters`` (checked by :func:`check_hyperparameters` for ``dim``)."""
+        return cls(every, check_hyperparameters(hyperparameters, dim), tie_threshold)
+
     def refit(
         self,
         train_inputs: np.ndarray,

@@ -43,7 +43,8 @@ Decisions not fixed by the paper (documented here, in the README and the report)
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
+from typing import Unpack
 
 import numpy as np
 import torch
@@ -55,8 +56,13 @@ from localpbo_core.optimizers.acquisition import (
     thompson_discrete,
 )
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
-from localpbo_core.optimizers.preference_optimizer import PreferenceOptimizer, step_generator
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter, check_hyperparameters
+from localpbo_core.optimizers.preference_optimizer import (
+    PreferenceOptimizer,
+    RunOptions,
+    check_multistart,
+    step_generator,
+)
+from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
 from localpbo_core.optimizers.trust_region import (
     TREvent,
     TRStep,
@@ -68,6 +74,19 @@ from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, check_choice, check_int
 
 ACQUISITIONS = ("ts", "ts_discrete", "qeubo", "ei")
+
+
+class TuRPBOOptions(RunOptions, total=False):
+    """The options of :class:`TuRPBO` (see its Args)."""
+
+    batch_size: int
+    acquisition: str
+    num_raw_samples: int
+    num_restarts: int
+    num_features: int
+    num_mc_samples: int
+    hyperparameter_refit_every: int
+    hyperparameters: Mapping[str, object] | None
 
 
 class TuRPBO(PreferenceOptimizer):
@@ -89,9 +108,8 @@ class TuRPBO(PreferenceOptimizer):
             hyperparameters at every iteration. With k > 1 they are learned at every k-th
             iteration only and held at the last learned values in between (the Laplace MAP
             is still refit on all data every iteration). A speed option, not the paper's.
-        hyperparameters: fixed GP hyperparameters, e.g. ``{"lengthscale": 0.1,
-            "outputscale": 2.0}`` (within-model runs give the true ones, App. D.4); see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`. Default None: learned.
+        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
+            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
     """
 
     name = "turpbo"
@@ -101,8 +119,6 @@ class TuRPBO(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        initial_design: int = 2,
-        warm_start: Sequence[float] | np.ndarray | None = None,
         batch_size: int = 1,
         acquisition: str = "ts",
         num_raw_samples: int = 1024,
@@ -111,39 +127,25 @@ class TuRPBO(PreferenceOptimizer):
         num_mc_samples: int = 512,
         hyperparameter_refit_every: int = 1,
         hyperparameters: Mapping[str, object] | None = None,
-        tie_threshold: float = 0.0,
+        **run: Unpack[RunOptions],
     ) -> None:
-        super().__init__(
-            dim,
-            seed,
-            budget,
-            initial_design=initial_design,
-            warm_start=warm_start,
-            tie_threshold=tie_threshold,
-        )
+        super().__init__(dim, seed, budget, **run)
         self.batch_size = check_int("batch_size", batch_size)
         self.acquisition = check_choice("acquisition", acquisition, ACQUISITIONS)
-        self.num_raw_samples = check_int("num_raw_samples", num_raw_samples)
-        self.num_restarts = check_int("num_restarts", num_restarts)
+        self.num_restarts, self.num_raw_samples = check_multistart(num_restarts, num_raw_samples)
         self.num_features = check_int("num_features", num_features)
         self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
-        self.hyperparameter_refit_every = check_int(
-            "hyperparameter_refit_every", hyperparameter_refit_every
-        )
         if self.acquisition == "ei" and self.batch_size > 1:
             raise SettingError("batch_size", "acquisition 'ei' has no batch form; use 1")
-        if self.num_restarts > self.num_raw_samples:
-            raise SettingError("num_restarts", "must not exceed num_raw_samples")
         self.tr = TrustRegionState(dim=self.dim, batch_size=self.batch_size)
         self._center_id: int | None = None
         self._center_challenged = True  # center known to be the global incumbent
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
-        self._refitter = SurrogateRefitter(
-            self.hyperparameter_refit_every,
-            check_hyperparameters(hyperparameters, self.dim),
-            self.tie_threshold,
+        self._refitter = SurrogateRefitter.for_options(
+            hyperparameter_refit_every, hyperparameters, self.dim, self.tie_threshold
         )
+        self.hyperparameter_refit_every = self._refitter.every
         self.region_history: list[TRStep] = []
 
     # ------------------------------------------------------------------ state

@@ -107,27 +107,25 @@ class DuelOracle:
         self.indifference = check_float("indifference", indifference, minimum=0.0)
         self.tie_width = 0.0
         if self.indifference > 0:
-            value_range = float(problem.value_range)
-            if not (math.isfinite(value_range) and value_range > 0):
-                raise SettingError(
-                    "indifference",
-                    f"needs a positive finite value range; problem {problem.name!r} has "
-                    f"{value_range!r}",
-                )
-            self.tie_width = self.indifference * value_range
+            self.tie_width = self.indifference * _value_range(problem, "indifference")
+
+    def _observed(
+        self, duel_id: int, value_first: float, value_second: float
+    ) -> tuple[float, float]:
+        """The two noisy values of duel ``duel_id`` (eq. (2)), drawn from its own seed."""
+        rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
+        return _noisy_pair(self.noise_std, rng, value_first, value_second)
 
     def first_wins(self, duel_id: int, value_first: float, value_second: float) -> bool:
         """True if the first candidate of duel ``duel_id`` is preferred (eq. (3))."""
-        rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
-        y_first, y_second = _noisy_pair(self.noise_std, rng, value_first, value_second)
+        y_first, y_second = self._observed(duel_id, value_first, value_second)
         return bool(y_first > y_second)
 
     def judge(self, duel_id: int, value_first: float, value_second: float) -> bool | None:
         """True if the first candidate is preferred, False if the second, None for "can't
         tell" (``|y_first - y_second| < indifference * value_range``; never when
         ``indifference`` is 0, where this is :meth:`first_wins`)."""
-        rng = np.random.default_rng(duel_seed(self.run_seed, duel_id))
-        y_first, y_second = _noisy_pair(self.noise_std, rng, value_first, value_second)
+        y_first, y_second = self._observed(duel_id, value_first, value_second)
         if abs(y_first - y_second) < self.tie_width:
             return None
         return bool(y_first > y_second)
@@ -143,14 +141,21 @@ def noise_std(problem: Problem, noise_fraction: float) -> float:
     fraction = check_float("noise_fraction", noise_fraction, minimum=0.0)
     if fraction == 0:
         return 0.0
+    value_range = _value_range(problem, "noise_fraction", " (set the problem's value_range)")
+    return fraction * value_range
+
+
+def _value_range(problem: Problem, field: str, hint: str = "") -> float:
+    """``problem.value_range``, which option ``field`` needs positive and finite (SettingError
+    on ``field`` otherwise, ending with ``hint``)."""
     value_range = float(problem.value_range)
     if not (math.isfinite(value_range) and value_range > 0):
         raise SettingError(
-            "noise_fraction",
+            field,
             f"needs a positive finite value range; problem {problem.name!r} has "
-            f"{value_range!r} (set the problem's value_range)",
+            f"{value_range!r}{hint}",
         )
-    return fraction * value_range
+    return value_range
 
 
 def _noisy_pair(

@@ -2,9 +2,20 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 import torch
 from optim_helpers import FakeSurrogate
+
+
+@pytest.fixture
+def one_torch_thread() -> Iterator[None]:
+    """Run the test single-threaded in torch (restored afterwards)."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
 
 
 @pytest.fixture

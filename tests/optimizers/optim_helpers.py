@@ -6,13 +6,13 @@ TuRPBO *state machine* (counters, restarts, duels), which must not depend on GP 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from localpbo_core.optimizers import Outcome, PreferenceOptimizer
+from localpbo_core.optimizers import Duel, Outcome, PreferenceOptimizer
 
 
 class FakeSurrogate:
@@ -44,10 +44,26 @@ def utility(theta: np.ndarray) -> float:
     return float(-np.sum((np.asarray(theta) - 0.3) ** 2))
 
 
+def judged(values: Mapping[int, float], duels: Iterable[Duel]) -> list[Outcome]:
+    """Noise-free outcomes of ``duels`` by ``values`` (candidate id -> value): the higher value
+    wins, the first side on a tie."""
+    return [
+        Outcome(d.first, d.second)
+        if values[d.first] >= values[d.second]
+        else Outcome(d.second, d.first)
+        for d in duels
+    ]
+
+
 def drive(
-    opt: PreferenceOptimizer, judge: Callable[[np.ndarray], float] = utility
+    opt: PreferenceOptimizer,
+    judge: Callable[[np.ndarray], float] = utility,
+    noise: float = 0.0,
+    rng: np.random.Generator | None = None,
 ) -> list[np.ndarray]:
-    """Run ``opt`` to the end with noise-free duels on ``judge``; return all thetas."""
+    """Run ``opt`` to the end with duels on ``judge``, each side's value plus ``noise`` times a
+    standard normal draw of ``rng`` (first side first; noise-free by default); return all
+    thetas."""
     values: dict[int, float] = {}
     while not opt.done:
         ask = opt.ask()
@@ -56,6 +72,11 @@ def drive(
         outs = []
         for d in ask.duels:
             a, b = d.first, d.second
-            outs.append(Outcome(a, b) if values[a] >= values[b] else Outcome(b, a))
+            va, vb = values[a], values[b]
+            if noise:
+                assert rng is not None
+                va += noise * rng.standard_normal()
+                vb += noise * rng.standard_normal()
+            outs.append(Outcome(a, b) if va >= vb else Outcome(b, a))
         opt.tell(outs)
     return [c.theta for c in opt.history.candidates]

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from optim_helpers import drive
+from optim_helpers import drive, judged
 
-from localpbo_core.optimizers import Outcome, make_optimizer
+from localpbo_core.optimizers import make_optimizer
 from localpbo_core.optimizers.gi_acquisition import (
     gi_pbo_acquisition,
     hypersphere_candidates,
@@ -210,14 +210,7 @@ def _accounting(opt: GIPBO) -> tuple[int, int]:
             # the new center is evaluated now and is the opponent of the first local query
             assert ask.duels == (type(ask.duels[0])(query.id, center.id),)
         comps += len(ask.duels)
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if vals[d.first] >= vals[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(vals, ask.duels))
     return comps, len(vals)
 
 

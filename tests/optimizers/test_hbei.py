@@ -5,21 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
-from optim_helpers import drive, utility
+from optim_helpers import drive, judged, utility
 from scipy.stats import norm
 
 from localpbo_core.optimizers import Outcome, available_optimizers, make_optimizer
 from localpbo_core.optimizers.hbei import HBEI, expected_improvement
 from localpbo_core.validation import SettingError
 
-
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_registered() -> None:
@@ -108,14 +101,7 @@ def test_each_ask_duels_one_new_point_against_the_winner() -> None:
         ask = opt.ask()
         for c in ask.candidates:
             values[c.id] = utility(c.theta)
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if values[d.first] >= values[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(values, ask.duels))
     ask = opt.ask()
     assert len(ask.candidates) == 1 and len(ask.duels) == 1
     assert ask.duels[0].second == opt.incumbent.id

@@ -5,13 +5,16 @@ validated tells and "can't tell" answers."""
 from __future__ import annotations
 
 import copy
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 import torch
-from optim_helpers import drive, utility
+from optim_helpers import drive, judged, utility
 
 from localpbo_core.optimizers import (
+    Ask,
+    Candidate,
     Indifferent,
     InvalidOutcome,
     Outcome,
@@ -20,10 +23,7 @@ from localpbo_core.optimizers import (
 )
 from localpbo_core.optimizers.hybrid import Hybrid, slope_confidence
 from localpbo_core.optimizers.prefsqp import negative_definite_modification
-
-
-def _judge(values: dict[int, float], first: int, second: int) -> Outcome:
-    return Outcome(first, second) if values[first] >= values[second] else Outcome(second, first)
+from localpbo_core.surrogate import Surrogate
 
 
 def _drive_by_theta(opt: PreferenceOptimizer) -> list[np.ndarray]:
@@ -40,6 +40,24 @@ def _drive_by_theta(opt: PreferenceOptimizer) -> list[np.ndarray]:
             ]
         )
     return [c.theta for c in opt.history.candidates]
+
+
+def _local_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, Surrogate, torch.Tensor]]:
+    """Drive ``opt`` noise-free on ``utility``; yield every ask of a local step, before it is
+    answered, with the center, the surrogate and the center's theta as a tensor (duels the
+    caller answers are not answered again)."""
+    values: dict[int, float] = {}
+    while not opt.done:
+        before = len(opt.modes)
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        if len(opt.modes) > before and opt.modes[-1] == "local":
+            center, sur = opt.center, opt.surrogate
+            assert center is not None and sur is not None
+            yield ask, center, sur, torch.tensor(center.theta, dtype=torch.float64)
+        if opt.pending_duels == tuple(ask.duels):
+            opt.tell(judged(values, ask.duels))
 
 
 def _older_wins(opt: PreferenceOptimizer) -> None:
@@ -82,27 +100,16 @@ def test_until_the_first_handover_it_asks_turpbos_candidates() -> None:
 def test_local_step_is_the_kernel_metric_gradient_step() -> None:
     opt = make_optimizer("hybrid", 3, seed=1, budget=32, confidence=0.0, stall_duels=100)
     assert isinstance(opt, Hybrid)
-    values: dict[int, float] = {}
     checked = 0
-    while not opt.done:
-        before = len(opt.modes)
-        ask = opt.ask()
-        for c in ask.candidates:
-            values[c.id] = utility(c.theta)
-        if len(opt.modes) > before and opt.modes[-1] == "local":
-            center = opt.center
-            assert center is not None and len(ask.candidates) == 1
-            sur = opt.surrogate
-            assert sur is not None
-            x = torch.tensor(center.theta, dtype=torch.float64)
-            g = sur.mean_gradient(x).detach().numpy()
-            ls = sur.lengthscale.detach().numpy()
-            eta = 0.5 * 0.5**opt._losses
-            expected = np.clip(center.theta + eta * g / np.sqrt(np.sum(g**2 / ls**2)), 0, 1)
-            np.testing.assert_allclose(ask.candidates[0].theta, expected, atol=1e-12)
-            assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
-            checked += 1
-        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    for ask, center, sur, x in _local_asks(opt):
+        assert len(ask.candidates) == 1
+        g = sur.mean_gradient(x).detach().numpy()
+        ls = sur.lengthscale.detach().numpy()
+        eta = 0.5 * 0.5**opt._losses
+        expected = np.clip(center.theta + eta * g / np.sqrt(np.sum(g**2 / ls**2)), 0, 1)
+        np.testing.assert_allclose(ask.candidates[0].theta, expected, atol=1e-12)
+        assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
+        checked += 1
     assert checked >= 10
 
 
@@ -111,28 +118,17 @@ def test_newton_direction_option() -> None:
         "hybrid", 3, seed=1, budget=24, confidence=0.0, local_direction="newton", stall_duels=100
     )
     assert isinstance(opt, Hybrid)
-    values: dict[int, float] = {}
     checked = 0
-    while not opt.done:
-        before = len(opt.modes)
-        ask = opt.ask()
-        for c in ask.candidates:
-            values[c.id] = utility(c.theta)
-        if len(opt.modes) > before and opt.modes[-1] == "local":
-            center = opt.center
-            sur = opt.surrogate
-            assert center is not None and sur is not None
-            x = torch.tensor(center.theta, dtype=torch.float64)
-            g = sur.mean_gradient(x).detach().numpy()
-            H = sur.mean_hessian(x).detach().numpy()
-            u = -np.linalg.solve(negative_definite_modification(H), g)
-            step = ask.candidates[0].theta - center.theta
-            inside = np.all((ask.candidates[0].theta > 0) & (ask.candidates[0].theta < 1))
-            if inside:  # not projected: parallel to the Newton direction
-                cos = step @ u / (np.linalg.norm(step) * np.linalg.norm(u))
-                assert cos == pytest.approx(1.0, abs=1e-9)
-                checked += 1
-        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    for ask, center, sur, x in _local_asks(opt):
+        g = sur.mean_gradient(x).detach().numpy()
+        H = sur.mean_hessian(x).detach().numpy()
+        u = -np.linalg.solve(negative_definite_modification(H), g)
+        step = ask.candidates[0].theta - center.theta
+        inside = np.all((ask.candidates[0].theta > 0) & (ask.candidates[0].theta < 1))
+        if inside:  # not projected: parallel to the Newton direction
+            cos = step @ u / (np.linalg.norm(step) * np.linalg.norm(u))
+            assert cos == pytest.approx(1.0, abs=1e-9)
+            checked += 1
     assert checked >= 3
 
 
@@ -170,18 +166,8 @@ def test_improves_on_smooth_problem_under_noise() -> None:
     gaps, used_local = [], 0
     for seed in range(3):
         opt = make_optimizer("hybrid", 6, seed=seed, budget=62)
-        values: dict[int, float] = {}
-        while not opt.done:
-            ask = opt.ask()
-            for c in ask.candidates:
-                values[c.id] = utility(c.theta)
-            outs = []
-            for d in ask.duels:  # noise of 10 % of the range of the utility on the cube
-                a = values[d.first] + 0.1 * 2.94 * rng.standard_normal()
-                b = values[d.second] + 0.1 * 2.94 * rng.standard_normal()
-                outs.append(Outcome(d.first, d.second) if a >= b else Outcome(d.second, d.first))
-            opt.tell(outs)
-        vals = np.array(list(values.values()))
+        # noise of 10 % of the range of the utility on the cube
+        vals = np.array([utility(t) for t in drive(opt, noise=0.1 * 2.94, rng=rng)])
         gaps.append(1.0 - vals.max() / vals[:2].max())
         used_local += "local" in opt.modes
     assert np.mean(gaps) >= 0.5, gaps
@@ -195,7 +181,7 @@ def test_deep_copy_mid_local_phase_continues_identically() -> None:
         ask = opt.ask()
         for c in ask.candidates:
             values[c.id] = utility(c.theta)
-        opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+        opt.tell(judged(values, ask.duels))
     twin = copy.deepcopy(opt)
     a, b = _drive_by_theta(opt), _drive_by_theta(twin)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
@@ -213,7 +199,7 @@ def test_a_refused_tell_leaves_a_local_step_untouched() -> None:
                 for wrong in (Outcome(0, 0), Outcome(ask.duels[0].first, 10_000), "x"):
                     with pytest.raises(InvalidOutcome):
                         opt.tell([wrong])  # type: ignore[list-item]
-            opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+            opt.tell(judged(values, ask.duels))
         return [c.theta for c in opt.history.candidates]
 
     a, b = run(False), run(True)
@@ -227,21 +213,12 @@ def test_cant_tell_answers_are_no_win_and_are_modelled() -> None:
         "hybrid", 2, seed=0, budget=30, confidence=0.0, stall_duels=2, tie_threshold=0.5
     )
     assert isinstance(opt, Hybrid)
-    values: dict[int, float] = {}
     local_ties = 0
-    while not opt.done:
-        before = len(opt.modes)
-        ask = opt.ask()
-        for c in ask.candidates:
-            values[c.id] = utility(c.theta)
-        if len(opt.modes) > before and opt.modes[-1] == "local":
-            # a local step answered "can't tell": no win, the center stays
-            center = opt.center
-            opt.tell([Indifferent(d.first, d.second) for d in ask.duels])
-            assert opt.center == center
-            local_ties += 1
-        else:
-            opt.tell([_judge(values, d.first, d.second) for d in ask.duels])
+    for ask, center, _, _ in _local_asks(opt):
+        # a local step answered "can't tell": no win, the center stays
+        opt.tell([Indifferent(d.first, d.second) for d in ask.duels])
+        assert opt.center == center
+        local_ties += 1
     # two "can't tell" local steps in a row hand back: local runs are at most 2 long
     runs = "".join("L" if m == "local" else "g" for m in opt.modes)
     assert local_ties >= 4 and "LLL" not in runs and "LL" in runs

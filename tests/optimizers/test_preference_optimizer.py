@@ -184,3 +184,22 @@ def test_failed_ask_leaves_state_unchanged(monkeypatch: pytest.MonkeyPatch) -> N
     with pytest.raises(RuntimeError, match="surrogate failed"):
         opt.ask()
     assert _state(opt) == before
+
+
+def test_options_handed_on_as_typed_keywords_are_listed_with_their_base_defaults() -> None:
+    """``**options: Unpack[SomeOptions]`` stands for the keys of the TypedDict, each with the
+    default of the nearest base class that names it."""
+    from localpbo_core.optimizers.registry import optimizer_defaults, optimizer_options
+
+    assert optimizer_options("sobol") == [
+        "initial_design",
+        "warm_start",
+        "tie_threshold",
+        "batch_size",
+    ]
+    hybrid = optimizer_defaults("hybrid")
+    assert hybrid["num_mc_samples"] == 512 and hybrid["confidence"] == 1.0
+    assert hybrid["initial_design"] == 2 and hybrid["warm_start"] is None
+    gipbor = optimizer_defaults("gipbor")
+    assert gipbor["step_size"] == 0.5 and gipbor["hyperparameters"] is None
+    assert "radii" not in optimizer_options("gipbor") and "radii" in optimizer_options("gipbo")

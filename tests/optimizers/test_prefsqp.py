@@ -8,7 +8,7 @@ import pytest
 import scipy.integrate
 import scipy.stats
 import torch
-from optim_helpers import drive
+from optim_helpers import drive, judged
 
 from localpbo_core.optimizers import Outcome, make_optimizer
 from localpbo_core.optimizers.acquisition import eubo_from_moments
@@ -95,14 +95,7 @@ def _run_with_record(opt: PrefSQP) -> list[tuple[int, int]]:
         for c in ask.candidates:
             vals[c.id] = _quad(c.theta)
         shapes.append((len(ask.candidates), len(ask.duels)))
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if vals[d.first] >= vals[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(vals, ask.duels))
     return shapes
 
 
@@ -307,14 +300,7 @@ def test_lengthscale_radius_samples_lie_in_the_kernel_ellipsoid() -> None:
             beyond_fixed += any(np.linalg.norm(q.theta - opt.center) > 0.05 for q in queries)
         for c in ask.candidates:
             vals[c.id] = _quad(c.theta)
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if vals[d.first] >= vals[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(vals, ask.duels))
     # the paper's 0.05 ball would hold every sample: the option is what moves them out
     assert phases >= 3 and beyond_fixed >= phases - 1
 
@@ -328,14 +314,7 @@ def test_kernel_normalized_steps_have_length_eta_in_the_kernel_metric() -> None:
         for c in ask.candidates:
             vals[c.id] = _quad(c.theta)
         before = len(opt.directions)
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if vals[d.first] >= vals[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(vals, ask.duels))
         if len(opt.directions) > before:  # this tell ended a phase: its fit set the metric
             ls = opt.surrogate.lengthscale.detach().numpy()
             assert np.isclose(_kernel_norm(opt.directions[-1], ls), 0.5, rtol=1e-9)

@@ -22,13 +22,7 @@ from localpbo_core.optimizers.botorch_adapter import SurrogateModel, batched_mea
 from localpbo_core.optimizers.qeubo import QEUBO
 from localpbo_core.surrogate import PairwiseGPSurrogate
 
-
-@pytest.fixture(autouse=True)
-def _one_torch_thread():
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def _duels(d: int, n: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from optim_helpers import judged
 
 from localpbo_core import make_optimizer
 from localpbo_core.optimizers import Outcome
@@ -69,14 +70,7 @@ def test_turpbo_recommendation_refits_from_its_last_surrogate() -> None:
         ask = opt.ask()
         for c in ask.candidates:
             values[c.id] = _utility(c.theta)
-        opt.tell(
-            [
-                Outcome(d.first, d.second)
-                if values[d.first] >= values[d.second]
-                else Outcome(d.second, d.first)
-                for d in ask.duels
-            ]
-        )
+        opt.tell(judged(values, ask.duels))
     assert opt.surrogate is not None
     X = torch.tensor(opt.train_inputs(), dtype=torch.float64)
     C = torch.tensor(opt.comparisons(), dtype=torch.long)

@@ -11,6 +11,10 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from localpbo_msgs_py import Status
+from localpbo_msgs_py.bag import read_messages
+from localpbo_msgs_py.topics import STATUS
+
 HEAVY = ("numpy", "torch", "rclpy", "mujoco")
 """Shared objects of the heavy imports (their paths contain these names)."""
 
@@ -59,6 +63,61 @@ def start_node(env: dict[str, str], node: str, *ros_args: str) -> subprocess.Pop
         cmd += ["--ros-args", *ros_args]
     return subprocess.Popen(
         cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
+
+
+def interrupt(proc: subprocess.Popen[str], timeout_s: float) -> None:
+    """Stop ``proc`` with SIGINT; kill it if it has not ended within ``timeout_s``."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def wait_heard(bag: Path, nodes: set[str], timeout_s: float = 60.0) -> None:
+    """Until the recorder has recorded a status of each of ``nodes`` in ``bag``."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        heard = set()
+        if bag.exists():
+            for rec in read_messages(bag, topics=[STATUS.name]):
+                status = Status.decode(rec.message)
+                if isinstance(status, Status):
+                    heard.add(status.node)
+        if nodes <= heard:
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"the recorder did not hear {nodes}")
+
+
+def run_sobol(
+    env: dict[str, str], run_id: str, budget: int, timeout_s: float
+) -> subprocess.CompletedProcess[str]:
+    """Run a Sobol optimizer node process through a run of ``budget`` short episodes
+    (50 steps) that waits for two subscribers (simulator and oracle)."""
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "localpbo_ros.optimizer_node",
+            "--ros-args",
+            "-p",
+            "algorithm:=sobol",
+            "-p",
+            f"budget:={budget}",
+            "-p",
+            f"run_id:={run_id}",
+            "-p",
+            "min_subscribers:=2",
+            "-p",
+            'task_options:=\'{"episode_steps": 50, "value_range": 50.0}\'',
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
     )
 
 

@@ -54,12 +54,7 @@ def copy_without(src: Path, dst: Path, leave_out: Callable[[BagMessage], bool]) 
             if leave_out(rec):
                 left += 1
                 continue
-            writer.write(
-                rec.topic,
-                rec.message,
-                log_time_ns=rec.log_time_ns,
-                publish_time_ns=rec.publish_time_ns,
-            )
+            writer.copy(rec)
     return left
 
 

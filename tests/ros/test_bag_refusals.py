@@ -37,9 +37,7 @@ def rewrite(src: Path, dst: Path, drop: tuple[str, ...] = (), **edit: Any) -> Pa
                 config = RunConfig.decode(msg)
                 assert isinstance(config, RunConfig)
                 msg = replace(config, **edit).encode()
-            writer.write(
-                rec.topic, msg, log_time_ns=rec.log_time_ns, publish_time_ns=rec.publish_time_ns
-            )
+            writer.copy(rec, msg)
     return dst
 
 

@@ -16,6 +16,8 @@ from typing import IO
 from localpbo_examples.pid_controller_node import BRIDGE_SETTINGS
 from localpbo_ros.replay import verify
 
+from .processes import interrupt
+
 REPO = Path(__file__).resolve().parents[2]
 PID_SPACE = REPO / "ros_ws/src/localpbo_examples/config/pid_space.yaml"
 ORIGINAL_LINE = "gains set: kp=1.0, ki=0.1, kd=0.1"
@@ -52,12 +54,7 @@ class Proc:
 
     def stop(self) -> None:
         if self.popen.poll() is None:
-            self.popen.send_signal(signal.SIGINT)
-            try:
-                self.popen.wait(20)
-            except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait()
+            interrupt(self.popen, 20)
 
 
 def environment() -> dict[str, str]:

@@ -21,7 +21,7 @@ import pytest
 from localpbo_examples.pid_controller_node import BRIDGE_SETTINGS
 from localpbo_ros import dds
 
-from .processes import wait_ready
+from .processes import interrupt, wait_ready
 
 PID_SPACE = (
     Path(__file__).resolve().parents[2] / "ros_ws/src/localpbo_examples/config/pid_space.yaml"
@@ -145,12 +145,7 @@ def process(cmd: list[str], extra_env: dict[str, str], domain: int) -> Iterator[
         yield handle
     finally:
         if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(60)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+            interrupt(proc, 60)
 
 
 def run_cmd(tmp_path: Path, *args: str) -> list[str]:

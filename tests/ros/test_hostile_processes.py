@@ -15,11 +15,9 @@ from localpbo_ros.commands import main as commands_main
 from localpbo_ros.completeness import last_statuses
 from localpbo_ros.replay import verify
 
-from localpbo_msgs_py import Status
-from localpbo_msgs_py.bag import read_messages, summarize
-from localpbo_msgs_py.topics import STATUS
+from localpbo_msgs_py.bag import summarize
 
-from .processes import host_env, start_node, stop_nodes
+from .processes import host_env, run_sobol, start_node, stop_nodes, wait_heard
 
 FLOODER = str(Path(__file__).with_name("flooder.py"))
 BUDGET = 30
@@ -27,22 +25,6 @@ FLOOD_RATE = 300
 """Forged messages per second: what the nodes keep up with on a loaded 2-core machine (a
 flood beyond what a node can decode starves it; see the robustness section of the ROS
 package's README)."""
-
-
-def wait_heard(bag: Path, nodes: set[str], timeout_s: float = 60.0) -> None:
-    """Until the recorder has recorded a status of each of ``nodes``."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        heard = set()
-        if bag.exists():
-            for rec in read_messages(bag, topics=[STATUS.name]):
-                status = Status.decode(rec.message)
-                if isinstance(status, Status):
-                    heard.add(status.node)
-        if nodes <= heard:
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"the recorder did not hear {nodes}")
 
 
 def test_a_flooded_run_completes_with_its_whole_record(tmp_path: Path, capsys) -> None:
@@ -63,28 +45,7 @@ def test_a_flooded_run_completes_with_its_whole_record(tmp_path: Path, capsys) -
     try:
         wait_heard(bag, {"sim_node", "oracle_node"})
         time.sleep(2.0)  # the flood is on before the run starts
-        opt = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "localpbo_ros.optimizer_node",
-                "--ros-args",
-                "-p",
-                "algorithm:=sobol",
-                "-p",
-                f"budget:={BUDGET}",
-                "-p",
-                "run_id:=hp",
-                "-p",
-                "min_subscribers:=2",
-                "-p",
-                'task_options:=\'{"episode_steps": 50, "value_range": 50.0}\'',
-            ],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
+        opt = run_sobol(env, "hp", BUDGET, timeout_s=300)
         assert opt.returncode == 0, opt.stderr
         time.sleep(1.5)  # the helpers' last status heartbeats
         flooding_to_the_end = flooder.poll() is None  # its 600 s are not over

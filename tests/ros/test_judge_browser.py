@@ -10,16 +10,18 @@ import os
 import shutil
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from localpbo_ros.bagtools import duel_timings, load_run
+from localpbo_ros.benchmarks.judge_screenshot import until
 from localpbo_ros.replay import verify
-from localpbo_ros.suite import run_suite
 
 from localpbo_msgs_py import OutcomeKind
+
+from .judged_suite import JudgedSuite
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
@@ -54,49 +56,17 @@ def browser() -> Iterator[Any]:
     driver.quit()
 
 
-class Run:
-    """``run_suite`` with a judge in a thread; ``url`` once the page is served."""
+class Run(JudgedSuite):
+    """This module's run ``run_id`` with a judge (``SETTINGS`` updated by ``extra``)."""
 
     def __init__(self, tmp_path: Path, run_id: str, evaluator: Any = None, **extra: Any) -> None:
-        self.bag = tmp_path / f"{run_id}.mcap"
-        self.urls: list[str] = []
-        self.result: dict[str, Any] = {}
-        settings = {**SETTINGS, "run_id": run_id, **extra}
-
-        def go() -> None:
-            try:
-                self.result["summary"] = run_suite(
-                    settings,
-                    self.bag,
-                    judge={"state_dir": str(tmp_path / "judge")},
-                    on_url=self.urls.append,
-                    timeout_s=90,
-                    evaluator=evaluator,
-                )
-            except BaseException as exc:  # reported by the test
-                self.result["error"] = exc
-
-        self.thread = threading.Thread(target=go, daemon=True)
-        self.thread.start()
-        until(lambda: bool(self.urls) or not self.thread.is_alive(), 20)
-        assert self.urls, self.result
-        self.url = self.urls[0]
-
-    def finish(self) -> Any:
-        self.thread.join(60)
-        assert not self.thread.is_alive()
-        assert "error" not in self.result, self.result["error"]
-        return self.result["summary"]
-
-
-def until(pred: Callable[[], Any], timeout: float) -> Any:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = pred()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError("condition not met in time")
+        super().__init__(
+            {**SETTINGS, "run_id": run_id, **extra},
+            tmp_path / f"{run_id}.mcap",
+            {"state_dir": str(tmp_path / "judge")},
+            timeout_s=90,
+            evaluator=evaluator,
+        )
 
 
 def duel_shown(driver: Any, *, settle: bool = True) -> int:
@@ -110,6 +80,14 @@ def duel_shown(driver: Any, *, settle: bool = True) -> int:
         return None if not enabled or duel is None or not calm else int(duel) + 1
 
     return until(ready, 20) - 1
+
+
+def answer_a(driver: Any, times: int) -> None:
+    """Answer ``a`` to each of the next ``times`` duels the page shows, once it records it."""
+    for _ in range(times):
+        duel = duel_shown(driver)
+        driver.find_element("id", "answer-a").click()
+        reply_text(driver, f"Recorded: duel {duel}")
 
 
 def reply_text(driver: Any, *needles: str) -> str:
@@ -243,10 +221,7 @@ def test_wrong_secret_and_malformed_answer_refused_in_the_browser(
     assert status[0] == 400
     assert (status[1]["field"], status[1]["reason"]) == ("first_id", "wrong_candidates")
     assert duel_shown(browser) == duel  # nothing recorded
-    for _ in range(5):  # finish the run
-        duel = duel_shown(browser)
-        browser.find_element("id", "answer-a").click()
-        reply_text(browser, f"Recorded: duel {duel}")
+    answer_a(browser, 5)  # finish the run
     summary = run.finish()
     assert summary.state == "done"
     assert len(load_run(run.bag).outcomes) == 5
@@ -272,10 +247,7 @@ def test_page_says_which_candidate_is_being_evaluated(browser: Any, tmp_path: Pa
         "class"
     ) or "evaluating" in browser.find_element("id", "side-b").get_attribute("class")
     assert browser.find_element("id", "canvas-a").is_displayed() is False  # nothing to replay
-    for _ in range(2):
-        duel = duel_shown(browser)
-        browser.find_element("id", "answer-a").click()
-        reply_text(browser, f"Recorded: duel {duel}")
+    answer_a(browser, 2)
     assert run.finish().state == "done"
 
 
@@ -358,10 +330,7 @@ def test_first_hopper_duel_is_watchable_at_a_chosen_speed(browser: Any, tmp_path
     Select(browser.find_element("id", "speed")).select_by_value("4")
     browser.execute_script("replay.offset = duration() - 0.01; replay.start = performance.now();")
     until(lambda: browser.execute_script("return now() < duration() / 2"), 5)
-    for _ in range(2):
-        duel = duel_shown(browser)
-        browser.find_element("id", "answer-a").click()
-        reply_text(browser, f"Recorded: duel {duel}")
+    answer_a(browser, 2)
     assert run.finish().state == "done"
 
 

@@ -5,7 +5,6 @@ again). Answers go over HTTP here; the browser tests drive the page itself."""
 from __future__ import annotations
 
 import json
-import threading
 import time
 import urllib.error
 import urllib.request
@@ -22,6 +21,8 @@ from localpbo_ros.sim_node import SimNode
 from localpbo_ros.suite import run_suite
 
 from localpbo_msgs_py import DuelOutcome
+
+from .judged_suite import JudgedSuite
 
 SETTINGS = {
     "algorithm": "sobol",
@@ -104,23 +105,12 @@ def test_resumed_run_keeps_every_answer_once(tmp_path: Path) -> None:
     bag = tmp_path / "resumable.mcap"
     judge = {"state_dir": str(tmp_path / "judge")}
     settings = {**SETTINGS, "run_id": "resumable"}
-    urls: list[str] = []
-    done: dict[str, Any] = {}
-
-    def first_part() -> None:
-        done["summary"] = run_suite(settings, bag, judge=judge, on_url=urls.append, timeout_s=6)
-
-    thread = threading.Thread(target=first_part, daemon=True)
-    thread.start()
-    end = time.monotonic() + 20
-    while not urls and time.monotonic() < end:
-        time.sleep(0.05)
+    first_part = JudgedSuite(settings, bag, judge, timeout_s=6)
     given: dict[int, DuelOutcome] = {}
     for choice in ("a", "b"):
-        duel = ready_duel(urls[0])
-        answer(urls[0], duel, choice)
-    thread.join(30)
-    assert done["summary"].state == "timeout"  # stopped with duel 2 open
+        duel = ready_duel(first_part.url)
+        answer(first_part.url, duel, choice)
+    assert first_part.finish(30).state == "timeout"  # stopped with duel 2 open
     first = load_run(bag)
     given = {o.duel_id: o for o in first.outcomes}
     assert sorted(given) == [0, 1]
@@ -129,37 +119,25 @@ def test_resumed_run_keeps_every_answer_once(tmp_path: Path) -> None:
     journaled = DuelOutcome.decisive(pending, pending.second_id, answer_seconds=3.0)
     Journal(tmp_path / "judge" / "resumable").append(journaled)
 
-    urls.clear()
-    resumed: dict[str, Any] = {}
     second_bag = tmp_path / "resumed.mcap"
-
-    def second_part() -> None:
-        resumed["summary"] = run_suite(
-            settings, second_bag, resume=bag, judge=judge, on_url=urls.append, timeout_s=60
-        )
-
-    thread = threading.Thread(target=second_part, daemon=True)
-    thread.start()
-    end = time.monotonic() + 20
-    while not urls and time.monotonic() < end:
-        time.sleep(0.05)
+    second_part = JudgedSuite(settings, second_bag, judge, resume=bag, timeout_s=60)
     asked: list[int] = []
-    while thread.is_alive():
+    while second_part.thread.is_alive():
         try:
-            state = fetch(urls[0] + "api/state")[1]
+            state = fetch(second_part.url + "api/state")[1]
         except OSError:  # the run ended and the page with it
             break
         duel = state.get("duel")
         if duel is not None and duel["ready"] and duel["duel_id"] not in asked:
             asked.append(duel["duel_id"])
-            answer(urls[0], duel, "a")
+            answer(second_part.url, duel, "a")
         time.sleep(0.02)
-    thread.join(30)
-    assert resumed["summary"].state == "done"
-    assert 2 not in asked and asked == list(range(3, resumed["summary"].duels))
+    resumed = second_part.finish(30)
+    assert resumed.state == "done"
+    assert 2 not in asked and asked == list(range(3, resumed.duels))
     out = load_run(second_bag)
     ids = [o.duel_id for o in out.outcomes]
-    assert ids == sorted(set(ids)) == list(range(resumed["summary"].duels))  # each once
+    assert ids == sorted(set(ids)) == list(range(resumed.duels))  # each once
     assert {i: o for i, o in ((o.duel_id, o) for o in out.outcomes) if i < 2} == given
     assert next(o for o in out.outcomes if o.duel_id == 2) == journaled
     assert verify(second_bag).ok

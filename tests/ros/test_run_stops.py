@@ -28,7 +28,7 @@ from localpbo_ros.replay import verify
 
 from localpbo_msgs_py.bag import summarize
 
-from .processes import host_env, imported_before_guard, wait_for_guard
+from .processes import host_env, imported_before_guard, interrupt, wait_for_guard
 
 LOCALPBO = str(Path(sys.executable).with_name("localpbo"))
 REPO = Path(__file__).resolve().parents[2]
@@ -308,12 +308,7 @@ def test_stop_bridged_run_restores_the_controller(
     finally:
         if run is not None:
             run.kill()
-        controller.send_signal(signal.SIGINT)
-        try:
-            controller.wait(30)
-        except subprocess.TimeoutExpired:
-            controller.kill()
-            controller.wait()
+        interrupt(controller, 30)
 
 
 URL = re.compile(r"judge the duels at (http://\S+)")

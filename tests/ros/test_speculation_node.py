@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from localpbo_msgs_py.topics import (
 
 from . import person
 from .configs import run_config
+from .judged_suite import JudgedSuite
 
 SETTINGS = {
     "run_id": "spec",
@@ -70,21 +70,11 @@ def _judged(tmp_path: Path, name: str, speculate: bool, undo_at: int = -1) -> Pa
     """A run answered by a scripted person 0.3 s after each duel is ready (``a``, every third
     answer ``tie``); at answer ``undo_at`` the person first answers ``b``, then takes it back
     and answers as usual."""
-    urls: list[str] = []
     bag = tmp_path / f"{name}.mcap"
     settings = {**SETTINGS, "run_id": name, "speculate": speculate, "tie_threshold": 0.25}
     judge = {"state_dir": str(tmp_path / f"judge-{name}")}
-    result: dict[str, Any] = {}
-
-    def run() -> None:
-        result["summary"] = run_suite(settings, bag, judge=judge, on_url=urls.append, timeout_s=300)
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 60
-    while not urls and time.monotonic() < deadline:
-        time.sleep(0.01)
-    url = urls[0]
+    run = JudgedSuite(settings, bag, judge, url_timeout_s=60, timeout_s=300)
+    url = run.url
     duel = person.next_ready(url)
     n = 0
     while duel is not None:
@@ -106,8 +96,8 @@ def _judged(tmp_path: Path, name: str, speculate: bool, undo_at: int = -1) -> Pa
         assert person.answer(url, duel, "tie" if n % 3 == 2 else "a")[0] == 200
         n += 1
         duel = person.next_ready(url, after=did)
-    thread.join(120)
-    assert result["summary"].state == "done", result["summary"].error
+    summary = run.finish(120)
+    assert summary.state == "done", summary.error
     return bag
 
 

@@ -80,12 +80,7 @@ def cut_before(bag: Path, out: Path, duel_id: int) -> None:
                 msg = DuelOutcome.decode(rec.message)
                 if isinstance(msg, DuelOutcome) and msg.duel_id >= duel_id:
                     break
-            writer.write(
-                rec.topic,
-                rec.message,
-                log_time_ns=rec.log_time_ns,
-                publish_time_ns=rec.publish_time_ns,
-            )
+            writer.copy(rec)
 
 
 @pytest.mark.slow

@@ -17,10 +17,10 @@ controller are :mod:`localpbo_examples.plant`.
 
 from __future__ import annotations
 
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Unpack
 
+from localpbo_ros.base import NodeOptions, node_arguments
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -58,19 +58,8 @@ def _float(name: str, value: float, lo: float, hi: float, text: str, read_only: 
 class PidControllerNode(Node):
     """The example controller (see module docstring)."""
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__(
-            "pid_controller_node",
-            context=context,
-            cli_args=cli_args,
-            parameter_overrides=[Parameter(k, value=v) for k, v in (overrides or {}).items()],
-        )
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__("pid_controller_node", **node_arguments(options))
         for gain, (value, lo, hi) in GAINS.items():
             self.declare_parameter(gain, *_float(gain, value, lo, hi, f"{gain} gain", False))
         rate = self.declare_parameter(

@@ -259,9 +259,7 @@ def copy_into(path: str | os.PathLike[str], writer: BagWriter) -> int:
     writer.add_suite_topics(ALL_TOPICS)
     n = 0
     for rec in read_messages(path):
-        writer.write(
-            rec.topic, rec.message, log_time_ns=rec.log_time_ns, publish_time_ns=rec.publish_time_ns
-        )
+        writer.copy(rec)
         n += 1
     return n
 

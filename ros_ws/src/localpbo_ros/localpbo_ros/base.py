@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
@@ -63,6 +63,26 @@ class WarningThrottle:
         return dict(self._held)
 
 
+class NodeOptions(TypedDict, total=False):
+    """How a node of the suite starts: ``context``, ``overrides`` and ``cli_args`` of
+    :class:`SuiteNode` (see its Args)."""
+
+    context: Context | None
+    overrides: dict[str, Any] | None
+    cli_args: list[str] | None
+
+
+def node_arguments(options: NodeOptions) -> dict[str, Any]:
+    """rclpy ``Node`` keyword arguments of ``options``: its context, its command-line arguments
+    and its overrides as parameter overrides."""
+    overrides = options.get("overrides") or {}
+    return {
+        "context": options.get("context"),
+        "cli_args": options.get("cli_args"),
+        "parameter_overrides": [Parameter(k, value=v) for k, v in overrides.items()],
+    }
+
+
 class SuiteNode(Node):
     """A node of the suite: declared parameters, counters and a status publisher.
 
@@ -87,17 +107,13 @@ class SuiteNode(Node):
         name: str,
         params: list[Param],
         *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
         status_period_s: float = 1.0,
         warn_period_s: float = WARN_PERIOD_S,
+        **options: Unpack[NodeOptions],
     ) -> None:
         super().__init__(
             name,
-            context=context,
-            cli_args=cli_args,
-            parameter_overrides=[Parameter(k, value=v) for k, v in (overrides or {}).items()],
+            **node_arguments(options),
             start_parameter_services=True,
         )
         self.settings = declare(self, params)

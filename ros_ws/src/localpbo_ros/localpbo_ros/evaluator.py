@@ -29,12 +29,11 @@ with :meth:`_succeed` or :meth:`_fail`.
 from __future__ import annotations
 
 from collections import deque
-from typing import Any
-
-from rclpy.context import Context
+from typing import Unpack
 
 from localpbo_msgs_py import CandidateMsg, EpisodeResult
 from localpbo_msgs_py.topics import CANDIDATE, EPISODE_RESULT
+from localpbo_ros.base import NodeOptions
 from localpbo_ros.follower import FollowerNode
 from localpbo_ros.params import Param
 from localpbo_ros.pool import BUSY_INFO, WORKER_INFO, new_worker_id
@@ -46,16 +45,8 @@ class EvaluatorNode(FollowerNode):
     Args: as :class:`~localpbo_ros.follower.FollowerNode`.
     """
 
-    def __init__(
-        self,
-        name: str,
-        params: list[Param],
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__(name, params, context=context, overrides=overrides, cli_args=cli_args)
+    def __init__(self, name: str, params: list[Param], **options: Unpack[NodeOptions]) -> None:
+        super().__init__(name, params, **options)
         self._queue: deque[CandidateMsg] = deque()
         self._current: CandidateMsg | None = None
         self._thetas: dict[int, tuple[float, ...]] = {}

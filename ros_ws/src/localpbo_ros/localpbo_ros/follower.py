@@ -15,14 +15,12 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from typing import Any
-
-from rclpy.context import Context
+from typing import Any, Unpack
 
 from localpbo_msgs_py import CandidateMsg, DecodeError, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import RUN_CONFIG
 from localpbo_ros.admission import OUT_OF_RANGE, IdRange, id_range
-from localpbo_ros.base import SuiteNode
+from localpbo_ros.base import NodeOptions, SuiteNode
 from localpbo_ros.params import Param
 
 FOLLOWER_PARAMS = [
@@ -44,18 +42,8 @@ FOLLOWER_PARAMS = [
 class FollowerNode(SuiteNode, abc.ABC):
     """A node that serves one run described by the latched run config."""
 
-    def __init__(
-        self,
-        name: str,
-        params: list[Param],
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__(
-            name, FOLLOWER_PARAMS + params, context=context, overrides=overrides, cli_args=cli_args
-        )
+    def __init__(self, name: str, params: list[Param], **options: Unpack[NodeOptions]) -> None:
+        super().__init__(name, FOLLOWER_PARAMS + params, **options)
         self.config: RunConfig | None = None
         self.ids = IdRange(0, 0)
         self._early: list[tuple[Callable[[Any], None], Any]] = []

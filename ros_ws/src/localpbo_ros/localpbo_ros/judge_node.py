@@ -34,9 +34,7 @@ import queue
 import secrets
 import threading
 from pathlib import Path
-from typing import Any, NoReturn
-
-from rclpy.context import Context
+from typing import Any, NoReturn, Unpack
 
 from localpbo_msgs_py import (
     DecodeError,
@@ -54,6 +52,7 @@ from localpbo_msgs_py.topics import (
     SPECULATIVE_CANDIDATE,
     STATUS,
 )
+from localpbo_ros.base import NodeOptions
 from localpbo_ros.driver import problem_of
 from localpbo_ros.episode_process import EpisodeProcess
 from localpbo_ros.follower import FollowerNode
@@ -131,16 +130,8 @@ def check_host(host: str, allow_remote: bool) -> str:
 class JudgeNode(FollowerNode):
     """The judge node (see module docstring)."""
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__(
-            "judge_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
-        )
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__("judge_node", PARAMS, **options)
         host = check_host(self.settings["host"], self.settings["allow_remote"])
         self.state_dir = Path(os.path.expanduser(self.settings["state_dir"]))
         url_file = self.settings["url_file"]

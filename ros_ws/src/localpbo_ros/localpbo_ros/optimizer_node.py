@@ -51,9 +51,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Sequence
-from typing import Any, NoReturn
-
-from rclpy.context import Context
+from typing import Any, NoReturn, Unpack
 
 from localpbo_core.optimizers import available_optimizers
 from localpbo_core.problems import available_problems
@@ -89,7 +87,7 @@ from localpbo_msgs_py.topics import (
     SPECULATIVE_CANDIDATE,
     STATUS,
 )
-from localpbo_ros.base import SuiteNode
+from localpbo_ros.base import NodeOptions, SuiteNode
 from localpbo_ros.completeness import Published
 from localpbo_ros.driver import (
     DEFAULT_FAILURE_POLICY,
@@ -336,14 +334,10 @@ class OptimizerNode(SuiteNode):
     def __init__(
         self,
         *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
         resume_outcomes: Sequence[DuelOutcome] = (),
+        **options: Unpack[NodeOptions],
     ) -> None:
-        super().__init__(
-            "optimizer_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
-        )
+        super().__init__("optimizer_node", PARAMS, **options)
         self.config = config_from_settings(self.settings)
         self.status_run_id = self.config.run_id
         if resume_outcomes:

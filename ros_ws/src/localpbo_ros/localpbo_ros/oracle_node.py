@@ -22,14 +22,13 @@ duels wait for results; everything else is dropped and counted (``dropped_<reaso
 
 from __future__ import annotations
 
-from typing import Any, NoReturn
-
-from rclpy.context import Context
+from typing import NoReturn, Unpack
 
 from localpbo_core.problems import DuelOracle
 from localpbo_msgs_py import DuelOutcome, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.records import EpisodeStatus
 from localpbo_msgs_py.topics import DUEL_OUTCOME, DUEL_REQUEST, EPISODE_RESULT
+from localpbo_ros.base import NodeOptions
 from localpbo_ros.driver import problem_of, settings_of
 from localpbo_ros.follower import FollowerNode
 
@@ -49,14 +48,8 @@ def judge(
 class OracleNode(FollowerNode):
     """The preference-oracle node (see module docstring)."""
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__("oracle_node", [], context=context, overrides=overrides, cli_args=cli_args)
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__("oracle_node", [], **options)
         self._oracle: DuelOracle | None = None
         self._results: dict[int, EpisodeResult] = {}
         self._waiting: dict[int, DuelRequest] = {}

@@ -44,7 +44,7 @@ bridges, each on its own controller instance, share a run.
 from __future__ import annotations
 
 import time
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Unpack
 
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType
@@ -54,7 +54,6 @@ from rcl_interfaces.srv import (
     ListParameters,
     SetParametersAtomically,
 )
-from rclpy.context import Context
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_services_default
@@ -66,6 +65,7 @@ from localpbo_core.space import ParameterSpace
 from localpbo_core.validation import SettingError
 from localpbo_msgs_py import CandidateMsg, DecodeError, EpisodeResult, RunConfig, Status
 from localpbo_msgs_py.topics import STATUS
+from localpbo_ros.base import NodeOptions
 from localpbo_ros.bridge import (
     REDUCERS,
     SCORE_KINDS,
@@ -202,16 +202,8 @@ class StampedClient:
 class ParamBridgeNode(EvaluatorNode):
     """The parameter bridge (see module docstring)."""
 
-    def __init__(
-        self,
-        *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
-    ) -> None:
-        super().__init__(
-            "param_bridge_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
-        )
+    def __init__(self, **options: Unpack[NodeOptions]) -> None:
+        super().__init__("param_bridge_node", PARAMS, **options)
         s = self.settings
         if not s["target_node"].strip("/"):
             raise ParameterError("target_node", "is required, e.g. /pid_controller_node")

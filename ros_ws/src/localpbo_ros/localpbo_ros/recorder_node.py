@@ -34,9 +34,8 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Unpack
 
-from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -46,7 +45,7 @@ from localpbo_msgs_py.errors import DecodeReason
 from localpbo_msgs_py.limits import MAX_MESSAGE_BYTES
 from localpbo_msgs_py.topics import ALL_TOPICS, EVENT_QOS, RUN_CONFIG, TopicSpec
 from localpbo_ros.admission import BEFORE_RUN, RunFilter
-from localpbo_ros.base import SuiteNode
+from localpbo_ros.base import NodeOptions, SuiteNode
 from localpbo_ros.params import Param, ParameterError
 
 PARAMS = [
@@ -121,15 +120,11 @@ class RecorderNode(SuiteNode):
     def __init__(
         self,
         *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
         writer: BagWriter | None = None,
         topics: Iterable[TopicSpec] = ALL_TOPICS,
+        **options: Unpack[NodeOptions],
     ) -> None:
-        super().__init__(
-            "recorder_node", PARAMS, context=context, overrides=overrides, cli_args=cli_args
-        )
+        super().__init__("recorder_node", PARAMS, **options)
         self.topics = tuple(topics)
         if writer is None:
             path = Path(self.settings["path"])

@@ -41,15 +41,15 @@ import math
 import threading
 from collections import Counter, OrderedDict, deque
 from collections.abc import Callable
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Unpack
 
 import numpy as np
-from rclpy.context import Context
 
 from localpbo_core.seeds import episode_seed
 from localpbo_core.session import evaluate_native
 from localpbo_msgs_py import RunConfig
 from localpbo_msgs_py.topics import SPECULATIVE_CANDIDATE
+from localpbo_ros.base import NodeOptions
 from localpbo_ros.driver import judged_by_person, problem_of
 from localpbo_ros.episode_process import EpisodeProcess
 from localpbo_ros.evaluator import EvaluatorNode
@@ -76,12 +76,10 @@ class SimNode(EvaluatorNode):
     def __init__(
         self,
         *,
-        context: Context | None = None,
-        overrides: dict[str, Any] | None = None,
-        cli_args: list[str] | None = None,
         evaluator: Evaluator | None = None,
+        **options: Unpack[NodeOptions],
     ) -> None:
-        super().__init__("sim_node", [], context=context, overrides=overrides, cli_args=cli_args)
+        super().__init__("sim_node", [], **options)
         self._evaluator = evaluator
         self._evaluator_lock = threading.Lock()  # a given evaluator: one call at a time
         self._problem: Any = None

@@ -49,6 +49,17 @@ def _fork(driver: Driver) -> Driver:
     return twin
 
 
+def _answered(driver: Driver, answer: DuelOutcome) -> tuple[float, Work | None]:
+    """Offer ``answer`` and ask for the next work (encoded for the wire); the seconds that
+    took and the work (None once the run is done)."""
+    t0 = time.perf_counter()
+    assert driver.offer(answer).accepted
+    work = None if driver.done else driver.ask()
+    if work is not None:
+        _encode(work)
+    return time.perf_counter() - t0, work
+
+
 def measure(algorithm: str, duels: int, n_measure: int, seed: int) -> dict[str, object]:
     """Drive one run to ``duels`` duels; time the last ``n_measure`` answers both ways."""
     settings = RunSettings(algorithm=algorithm, problem="hopper", seed=seed, budget=duels + 1)
@@ -75,23 +86,14 @@ def measure(algorithm: str, duels: int, n_measure: int, seed: int) -> dict[str, 
             assert driver.offer(early).accepted
         answer = answers[-1]
         if driver.n_duels >= duels - n_measure:
-            twin = _fork(driver)
-            t0 = time.perf_counter()
-            assert twin.offer(answer).accepted
-            expect = None if twin.done else twin.ask()
-            if expect is not None:
-                _encode(expect)
-            plain.append(time.perf_counter() - t0)
+            seconds, expect = _answered(_fork(driver), answer)
+            plain.append(seconds)
             spec = driver.speculate()
             assert spec is not None
             spec.join()
             spent.append(sum(b.seconds for b in spec.branches()))
-            t0 = time.perf_counter()
-            assert driver.offer(answer).accepted
-            got = None if driver.done else driver.ask()
-            if got is not None:
-                _encode(got)
-            fast.append(time.perf_counter() - t0)
+            seconds, got = _answered(driver, answer)
+            fast.append(seconds)
             same = (expect is None and got is None) or (
                 expect is not None and got is not None and expect == got
             )

@@ -19,6 +19,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,9 @@ README_COMMAND = [
 """README's command for a person judging (after ``localpbo``)."""
 
 
-def _wait(pred: Any, timeout: float) -> Any:
+def until(pred: Callable[[], Any], timeout: float) -> Any:
+    """The first true value of ``pred()``, polled every 50 ms for ``timeout`` seconds
+    (TimeoutError after that)."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         value = pred()
@@ -75,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
 
         reader = threading.Thread(target=read, daemon=True)
         reader.start()
-        printed = _wait(lambda: next((ln for ln in lines if "judge the duels at " in ln), ""), 120)
+        printed = until(lambda: next((ln for ln in lines if "judge the duels at " in ln), ""), 120)
         url = printed.split("judge the duels at ", 1)[1].split()[0]
         options = webdriver.ChromeOptions()
         options.binary_location = args.chromium
@@ -85,8 +88,8 @@ def main(argv: list[str] | None = None) -> int:
         driver = webdriver.Chrome(service=Service(args.chromedriver), options=options)
         try:
             driver.get(url)
-            _wait(lambda: driver.find_element("id", "answer-a").is_enabled(), 120)
-            _wait(lambda: driver.execute_script("return !!(replay.a && replay.b)"), 60)
+            until(lambda: driver.find_element("id", "answer-a").is_enabled(), 120)
+            until(lambda: driver.execute_script("return !!(replay.a && replay.b)"), 60)
             driver.find_element("id", "replay").click()
             time.sleep(args.at)
             driver.find_element("id", "play").click()  # pause on this frame
