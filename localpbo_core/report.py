@@ -37,6 +37,7 @@ import numpy as np
 
 from localpbo_core.arguments import parse_seeds
 from localpbo_core.experiments.claims import claims_table
+from localpbo_core.experiments.comparisons import compare
 from localpbo_core.experiments.paper import (
     PAPER_POLICY_WARM_START,
     PAPER_SECONDS,
@@ -67,29 +68,6 @@ class StoredRun:
     one the digests of the commit that stored it (``stored_by_commit``); None if neither is
     known. ``same_behaviour`` is set when recorded re-runs show its algorithm's code since
     then left the run's trace unchanged (:func:`~localpbo_core.provenance.same_behaviour`)."""
-
-
-def holm(pvalues: Sequence[float]) -> list[float]:
-    """Holm's step-down adjusted p-values (same order as the input)."""
-    m = len(pvalues)
-    order = sorted(range(m), key=lambda i: (pvalues[i], i))
-    adjusted = [0.0] * m
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (m - rank) * pvalues[i]))
-        adjusted[i] = running
-    return adjusted
-
-
-def paired_wilcoxon(x: Sequence[float], y: Sequence[float]) -> float:
-    """Two-sided Wilcoxon signed-rank p-value of paired samples (1.0 if all pairs are equal
-    or there are no pairs)."""
-    from scipy.stats import wilcoxon
-
-    a, b = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    if a.size == 0 or np.all(a == b):
-        return 1.0
-    return float(wilcoxon(a, b, alternative="two-sided").pvalue)
 
 
 # ---------------------------------------------------------------------- loading
@@ -211,24 +189,6 @@ def _fmt(x: float) -> str:
 def _mean_std(values: np.ndarray) -> str:
     std = float(values.std(ddof=1)) if values.size > 1 else 0.0
     return f"{_fmt(float(values.mean()))} ± {_fmt(std)}"
-
-
-def compare(
-    finals: dict[str, dict[int, float]], alpha: float
-) -> tuple[str, dict[str, float], dict[str, bool]]:
-    """Best algorithm (highest mean), Holm-adjusted paired Wilcoxon p against it, and whether
-    each algorithm is not significantly different from the best (the best itself: True)."""
-    means = {a: float(np.mean(list(v.values()))) for a, v in finals.items()}
-    best = sorted(means, key=lambda a: (-means[a], a))[0]
-    others = sorted(a for a in finals if a != best)
-    raw = []
-    for a in others:
-        seeds = sorted(set(finals[a]) & set(finals[best]))
-        raw.append(paired_wilcoxon([finals[best][s] for s in seeds], [finals[a][s] for s in seeds]))
-    adjusted = dict(zip(others, holm(raw), strict=True))
-    tied = {a: adjusted[a] >= alpha for a in others}
-    tied[best] = True
-    return best, adjusted, tied
 
 
 def _mark(text: str, algorithm: str, best: str, tied: dict[str, bool]) -> str:

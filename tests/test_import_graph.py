@@ -48,10 +48,13 @@ def _is_type_checking(test: ast.expr) -> bool:
     )
 
 
-def import_nodes(tree: ast.Module, *, module_level: bool) -> Iterator[ast.Import | ast.ImportFrom]:
+def import_nodes(
+    tree: ast.Module, *, module_level: bool, type_checking: bool = True
+) -> Iterator[ast.Import | ast.ImportFrom]:
     """The import statements of ``tree``: those run at import time if ``module_level``, else
-    every import statement anywhere (functions included)."""
-    if not module_level:
+    also those inside functions and classes; the body of ``if TYPE_CHECKING:`` only with
+    ``type_checking`` and not ``module_level``."""
+    if not module_level and type_checking:
         for node in ast.walk(tree):
             if isinstance(node, ast.Import | ast.ImportFrom):
                 yield node
@@ -72,15 +75,21 @@ def import_nodes(tree: ast.Module, *, module_level: bool) -> Iterator[ast.Import
                 stack.extend(handler.body)
         elif isinstance(node, ast.With):
             stack.extend(node.body)
+        elif not module_level:
+            stack.extend(n for n in ast.iter_child_nodes(node) if isinstance(n, ast.stmt))
+            if isinstance(node, ast.Match):
+                for case in node.cases:
+                    stack.extend(case.body)
 
 
 def imported_modules(
-    name: str, path: Path, modules: dict[str, Path], *, module_level: bool
+    name: str, path: Path, modules: dict[str, Path], *, module_level: bool, type_checking: bool
 ) -> set[str]:
     """The modules of the packages that ``name`` (at ``path``) imports."""
     is_package = path.name == "__init__.py"
     found: set[str] = set()
-    for node in import_nodes(ast.parse(path.read_text(), str(path)), module_level=module_level):
+    tree = ast.parse(path.read_text(), str(path))
+    for node in import_nodes(tree, module_level=module_level, type_checking=type_checking):
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         else:
@@ -98,14 +107,23 @@ def imported_modules(
     return found
 
 
-def import_graph(*, module_level: bool = True) -> nx.DiGraph:
+def import_graph(*, module_level: bool = True, type_checking: bool = True) -> nx.DiGraph:
+    """Edges of the imports :func:`import_nodes` yields with these flags."""
     modules = module_files()
     graph = nx.DiGraph()
     graph.add_nodes_from(modules)
     for name, path in modules.items():
-        for target in imported_modules(name, path, modules, module_level=module_level):
+        found = imported_modules(
+            name, path, modules, module_level=module_level, type_checking=type_checking
+        )
+        for target in found:
             graph.add_edge(name, target)
     return graph
+
+
+def circles(graph: nx.DiGraph) -> str:
+    """The circles of ``graph``, one ``a -> b -> a`` each, "; "-separated."""
+    return "; ".join(" -> ".join([*c, c[0]]) for c in nx.simple_cycles(graph))
 
 
 def test_the_graph_is_read() -> None:
@@ -120,8 +138,15 @@ def test_the_graph_is_read() -> None:
 
 
 def test_module_level_imports_have_no_circle() -> None:
-    cycles = list(nx.simple_cycles(import_graph()))
-    assert not cycles, "import circles: " + "; ".join(" -> ".join([*c, c[0]]) for c in cycles)
+    found = circles(import_graph())
+    assert not found, "import circles: " + found
+
+
+def test_imports_in_functions_close_no_circle() -> None:
+    """Imports inside functions too (not ``if TYPE_CHECKING:`` bodies): a circle there is a
+    pair of modules that need each other, only loaded late."""
+    found = circles(import_graph(module_level=False, type_checking=False))
+    assert not found, "import circles: " + found
 
 
 def test_only_the_console_script_imports_the_cli() -> None:

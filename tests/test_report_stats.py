@@ -8,7 +8,7 @@ import pytest
 from scipy.stats import wilcoxon
 from statsmodels.stats.multitest import multipletests
 
-from localpbo_core.report import compare, holm, paired_wilcoxon
+from localpbo_core.experiments.comparisons import compare, holm, paired_wilcoxon
 
 
 @pytest.mark.parametrize("seed", range(5))

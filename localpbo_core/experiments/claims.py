@@ -32,6 +32,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from localpbo_core.experiments.comparisons import compare, paired_wilcoxon
+
 if TYPE_CHECKING:
     from localpbo_core.report import StoredRun
 
@@ -75,8 +77,6 @@ class Group:
 
     def ranking(self, metric: str) -> tuple[str, dict[str, bool]]:
         """The best algorithm and, per algorithm, whether it is tied with it."""
-        from localpbo_core.report import compare
-
         if metric not in self._rankings:
             best, _, tied = compare(getattr(self, metric), self.alpha)
             self._rankings[metric] = (best, tied)
@@ -89,8 +89,6 @@ class Group:
     def not_below(self, metric: str, a: str, b: str) -> bool:
         """``a``'s mean above ``b``'s, or the two not significantly different (two-sided
         paired Wilcoxon by seed, p >= alpha)."""
-        from localpbo_core.report import paired_wilcoxon
-
         if self.mean(metric, a) >= self.mean(metric, b):
             return True
         values = getattr(self, metric)
