@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from localpbo_core.experiments.beyond import which_algorithm_section
 from localpbo_core.experiments.claims import claims_table
 from localpbo_core.experiments.paper import (
     PAPER_POLICY_WARM_START,
@@ -630,6 +631,7 @@ def write_report(
             f"![gp]({prefix}gp_summary.png)",
             "",
         ]
+    lines += which_algorithm_section(runs, alpha)
     lines += [
         "## Coverage",
         "",
