@@ -2,14 +2,17 @@
 fabricated runs whose counts are worked out here by hand, and the code's default against the
 evidence of the stored runs.
 
-With 10 seeds a constant paired difference gives the exact Wilcoxon p = 0.002 and equal values
-p = 1; Holm over 18 problems then adjusts 0.002 to at most 18 × 0.002 = 0.036 < 0.05, so every
-constant difference stays significant, within a problem (3 algorithms) and across problems.
+With 10 seeds, paired differences of one sign and without ties give the exact Wilcoxon
+p = 2 / 2^10 = 0.00195 and equal values p = 1; Holm over 18 problems then adjusts 0.00195 to at
+most 18 × 0.00195 = 0.035 < 0.05, so every such difference stays significant, within a problem
+(3 or 4 algorithms) and across problems. (The differences are kept free of ties: scipy
+replaces the exact test by a slow permutation test when they tie.)
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -83,11 +86,28 @@ def _beyond(spec: str) -> str:
 
 
 def _series(
-    spec: str, problem: str, label: str, best: float, cum: float, seconds: float = 1.0, **kw: object
+    spec: str,
+    problem: str,
+    label: str,
+    best: float,
+    cum: float,
+    seconds: float = 1.0,
+    spread: tuple[float, float] = (0.0, 0.0),
+    **kw: Any,
 ) -> list[StoredRun]:
-    """Ten seeds at ``best`` and ``cum`` plus 0.01 × seed (paired differences constant)."""
+    """Ten seeds at ``best`` and ``cum`` plus (0.01 + spread) × seed: two series of different
+    spreads differ by a distinct amount on each seed, of equal spreads by a constant."""
     return [
-        _run(spec, problem, label, s, best + 0.01 * s, cum + 0.01 * s, seconds, **kw)  # type: ignore[arg-type]
+        _run(
+            spec,
+            problem,
+            label,
+            s,
+            best + (0.01 + spread[0]) * s,
+            cum + (0.01 + spread[1]) * s,
+            seconds,
+            **kw,
+        )
         for s in SEEDS
     ]
 
@@ -106,9 +126,10 @@ def fixture_runs() -> list[StoredRun]:
     for i, (spec, problem) in enumerate(MAIN_PROBLEMS):
         db = 1.0 if i < 4 else (0.0 if i < 16 else -1.0)
         dc = 1.0 if i < 10 else (0.0 if i < 14 else -1.0)
+        spread = (0.001 * (db != 0), 0.001 * (dc != 0))  # equal to TuRPBO: the same values
         runs += _series(spec, problem, "turpbo", 10.0, 10.0, 1.0)
-        runs += _series(spec, problem, "sobol", 4.0, 4.0, 0.5)
-        runs += _series(_beyond(spec), problem, "hybrid", 10.0 + db, 10.0 + dc, 2.0)
+        runs += _series(spec, problem, "sobol", 4.0, 4.0, 0.5, (0.002, 0.002))
+        runs += _series(_beyond(spec), problem, "hybrid", 10.0 + db, 10.0 + dc, 2.0, spread)
     return runs
 
 
@@ -203,6 +224,7 @@ def test_section_renders() -> None:
     assert "`beyond_*` specs with stored runs: beyond_hybrid, beyond_hybrid_gp_out_of_model" in text
     assert "It picks **hybrid** (best or tied on 16 of 18 in final best-seen, 14 in final " in text
     assert f"the code's default (`DEFAULT_ALGORITHM`) is {DEFAULT_ALGORITHM}: they differ" in text
+    assert "`localpbo run --algorithm hybrid` runs it." in text
     assert "| hybrid | met (16) | met (4) | missed by 2 (2) | met (14) |" in text
     # Sobol's values under another label of the hybrid: tied with Sobol, 18 below TuRPBO
     assert "| hybrid_c0.5 | not" not in text

@@ -38,7 +38,8 @@ those seeds are used, so every comparison is paired by seed.
 all 18 problems, the one best or tied (final best-seen) on the most; ties broken by the
 count in final cumulative, then by name. ``localpbo run`` and the optimizer node default to
 :data:`localpbo_core.settings.DEFAULT_ALGORITHM`; the page says whether the two agree, and
-the test suite fails when they do not.
+the test suite fails when they do not. A label of a configured variant can be the default
+because the ``beyond_*`` specs name their variants by preset (:mod:`localpbo_core.presets`).
 
 **The hybrid's goal** (:data:`HYBRID_GOALS`): best or tied on at least 16 of the 18 problems
 in final best-seen, significantly above TuRPBO on at least 3, significantly below it on none,
@@ -275,6 +276,15 @@ def goal_verdicts(table: Sequence[Standing], algorithm: str) -> list[tuple[Goal,
     return out
 
 
+def runnable(label: str) -> bool:
+    """``label`` names a registered algorithm or a preset (:mod:`localpbo_core.presets`), so
+    ``localpbo run --algorithm`` and ``DEFAULT_ALGORITHM`` accept it."""
+    from localpbo_core.optimizers.registry import available_optimizers
+    from localpbo_core.presets import available_presets
+
+    return label in available_optimizers() or label in available_presets()
+
+
 def _cell(value: int | None) -> str:
     return "—" if value is None else str(value)
 
@@ -336,7 +346,13 @@ def which_algorithm_section(runs: Sequence[StoredRun], alpha: float) -> list[str
         )
         lines[-1] += (
             f"It picks **{choice}** (best or tied on {pick.best_final} of {total} in final "
-            f"best-seen, {pick.best_cumulative} in final cumulative); {agree}."
+            f"best-seen, {pick.best_cumulative} in final cumulative); {agree}. "
+            + (
+                f"`localpbo run --algorithm {choice}` runs it."
+                if runnable(choice)
+                else f"{choice} is neither a registered algorithm nor a preset "
+                "(`localpbo_core/presets.py`): it cannot be named as a default yet."
+            )
         )
     ran = {s.algorithm for s in table}
     hybrids = sorted(
