@@ -143,9 +143,9 @@ def conditions(run: StoredRun) -> str:
 
 
 def main_groups(runs: Sequence[StoredRun], alpha: float) -> list[Group]:
-    """The main problems that have runs, each as a :class:`~localpbo_core.experiments.claims.
-    Group` of the merged runs (module docstring), at :data:`localpbo_core.report.
-    COVERAGE_SEEDS`."""
+    """The main problems with runs of their paper spec, each a
+    :class:`~localpbo_core.experiments.claims.Group` of the merged runs at the seeds
+    :data:`~localpbo_core.report.COVERAGE_SEEDS` (module docstring)."""
     from localpbo_core.experiments.claims import groups_of
     from localpbo_core.report import COVERAGE_SEEDS
 
