@@ -14,6 +14,7 @@ import json
 from collections.abc import Sequence
 
 from localpbo_core.optimizers.registry import optimizer_options
+from localpbo_core.presets import expand
 
 FLAGS = {
     "problem": "--problem",
@@ -64,7 +65,9 @@ def _parse_value(text: str) -> object:
 
 
 def parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, dict[str, object]]:
-    """``key=value`` (every algorithm that accepts ``key``) or ``alg.key=value``."""
+    """``key=value`` (every algorithm that accepts ``key``) or ``alg.key=value``; ``alg`` may
+    be a preset (:mod:`localpbo_core.presets`, whose labels may hold a dot, e.g.
+    ``hybrid_c0.5.confidence=0.4``), which accepts its algorithm's options."""
     per_alg: dict[str, dict[str, object]] = {a: {} for a in algorithms}
     for item in items:
         if "=" not in item:
@@ -73,12 +76,15 @@ def parse_options(items: Sequence[str], algorithms: Sequence[str]) -> dict[str, 
         key = key.strip()
         parsed = _parse_value(value.strip())
         targets = list(algorithms)
-        if "." in key:
-            alg, key = key.split(".", 1)
-            if alg not in algorithms:
-                raise ValueError(f"--option {item!r}: algorithm {alg!r} is not in --algorithm")
+        named = [a for a in algorithms if key.startswith(a + ".")]
+        if named:
+            alg = max(named, key=len)
+            key = key[len(alg) + 1 :]
             targets = [alg]
-        accepted = [a for a in targets if key in optimizer_options(a)]
+        elif "." in key:
+            alg = key.split(".", 1)[0]
+            raise ValueError(f"--option {item!r}: algorithm {alg!r} is not in --algorithm")
+        accepted = [a for a in targets if key in optimizer_options(expand(a, {})[0])]
         if not accepted:
             raise ValueError(f"--option {key!r}: not an option of {', '.join(targets)}")
         for a in accepted:

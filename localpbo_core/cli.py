@@ -30,6 +30,7 @@ from localpbo_core.arguments import (
 )
 from localpbo_core.bench import bench, format_table, summarize
 from localpbo_core.optimizers.registry import available_optimizers
+from localpbo_core.presets import available_presets, expand
 from localpbo_core.settings import (
     DEFAULT_INITIAL_DESIGN,
     DEFAULT_NOISE_FRACTION,
@@ -60,7 +61,9 @@ def _build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--algorithm",
         required=True,
-        help=f"comma-separated algorithms; available: {', '.join(available_optimizers())}",
+        help=f"comma-separated algorithms; available: {', '.join(available_optimizers())}; "
+        f"or presets (an algorithm with options, localpbo_core/presets.py): "
+        f"{', '.join(available_presets())}",
     )
     bench.add_argument(
         "--seeds", default="0", help="comma-separated run seeds or ranges, e.g. 0,1,2 or 0-4"
@@ -244,14 +247,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             algorithms = [a.strip().lower() for a in args.algorithm.split(",") if a.strip()]
             if not algorithms:
                 raise SettingError("algorithm", "empty")
+            known = available_optimizers() + available_presets()
             for a in algorithms:
-                if a not in available_optimizers():
+                if a not in known:
                     raise SettingError(
-                        "algorithm",
-                        f"unknown algorithm {a!r}; available: {', '.join(available_optimizers())}",
+                        "algorithm", f"unknown algorithm {a!r}; available: {', '.join(known)}"
                     )
             if len(set(algorithms)) != len(algorithms):
                 raise SettingError("algorithm", "repeated algorithm")
+            runs = {a: expand(a, {})[0] for a in algorithms}
+            if len(set(runs.values())) != len(runs):
+                raise SettingError(
+                    "algorithm",
+                    f"{', '.join(f'{a} ({r})' for a, r in runs.items())}: two of them run the "
+                    "same algorithm, and a bench names its runs by algorithm; bench them into "
+                    "separate --out folders",
+                )
             seeds = parse_seeds(args.seeds)
             problem = args.problem
             budget, initial_design, noise = args.budget, args.initial_design, args.noise

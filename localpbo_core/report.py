@@ -36,11 +36,13 @@ from typing import Any
 import numpy as np
 
 from localpbo_core.arguments import parse_seeds
+from localpbo_core.experiments.beyond import which_algorithm_section
 from localpbo_core.experiments.claims import claims_table
 from localpbo_core.experiments.comparisons import compare
 from localpbo_core.experiments.paper import (
     PAPER_POLICY_WARM_START,
     PAPER_SECONDS,
+    PAPER_SEEDS,
     paper_seconds,
     problem_key,
 )
@@ -428,7 +430,7 @@ def drift_section(paths: Iterable[str | Path]) -> list[str]:
 
 
 # ---------------------------------------------------------------------- coverage
-COVERAGE_SEEDS = tuple(range(10))
+COVERAGE_SEEDS = PAPER_SEEDS
 """The seeds a group needs to count as stored: the paper's 10 runs per experiment (Sec. 6)."""
 
 
@@ -702,6 +704,7 @@ def write_report(
             f"![gp]({prefix}gp_summary.png)",
             "",
         ]
+    lines += which_algorithm_section(runs, alpha)
     lines += [
         "## Coverage",
         "",

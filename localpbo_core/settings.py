@@ -9,7 +9,8 @@ Every path (``localpbo bench``, ``localpbo run``, the ROS nodes, ``replay --veri
   "same initial data"; policy search uses 5 d);
 * ``DEFAULT_NOISE_FRACTION = 0.1``: oracle noise std as a fraction of the problem's
   approximate value range (paper Sec. 6 and App. D.1, "Noise model");
-* ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (TuRPBO) on ``DEFAULT_PROBLEM`` (Swimmer);
+* ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (TuRPBO, the choice of the stored runs) on
+  ``DEFAULT_PROBLEM`` (Swimmer);
 * the budget ``initial design + 10 d`` evaluations (:func:`default_budget`; 62 on
   Hartmann 6, paper App. D.1 "Evaluation and comparison budgets");
 * ``tie_threshold`` 0 (the paper's likelihood, no "can't tell" answers); a run whose judge
@@ -28,6 +29,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from localpbo_core.presets import expand
 from localpbo_core.validation import SettingError, check_float, check_int
 
 __all__ = [
@@ -53,7 +55,10 @@ DEFAULT_TIE_THRESHOLD = 0.25
 units; :mod:`localpbo_core.surrogate.ordinal`). Runs default to 0, the paper's model."""
 
 DEFAULT_ALGORITHM = "turpbo"
-"""The algorithm of ``localpbo run`` and of the optimizer node when none is chosen."""
+"""The algorithm (or preset, :mod:`localpbo_core.presets`) of ``localpbo run`` and of the
+optimizer node when none is chosen: the one the stored runs pick by the rule of
+:mod:`localpbo_core.experiments.beyond` (among the algorithms run on all 18 main problems of
+Sec. 6, best or tied on the most; ``tests/test_which_algorithm.py`` checks it)."""
 
 DEFAULT_PROBLEM = "swimmer"
 """The embedded default task: the 16-D Swimmer linear policy (162 evaluations, ~20 s)."""
@@ -81,7 +86,10 @@ class RunSettings:
     """Everything that defines a run; equal settings and outcomes give an identical run.
 
     Args:
-        algorithm: registered algorithm name (``make_optimizer``), lower-cased.
+        algorithm: registered algorithm name (``make_optimizer``) or preset label
+            (:mod:`localpbo_core.presets`), lower-cased. A preset is expanded here: the field
+            holds its algorithm and ``optimizer_options`` its options (then those given), so
+            the run is the one with the options given explicitly.
         problem: registered problem name (``make_problem``), e.g. ``hartmann6``, ``hopper``.
         seed: run seed (>= 0); the optimizer, the episode seeds and the oracle noise derive
             from it (:mod:`localpbo_core.seeds`).
@@ -121,7 +129,11 @@ class RunSettings:
             value = getattr(self, name)
             if not isinstance(value, str) or not value.strip():
                 raise SettingError(name, f"must be a non-empty name, got {value!r}")
-        object.__setattr__(self, "algorithm", self.algorithm.strip().lower())
+        algorithm, options = expand(
+            self.algorithm.strip().lower(),
+            _check_options("optimizer_options", self.optimizer_options),
+        )
+        object.__setattr__(self, "algorithm", algorithm)
         object.__setattr__(self, "problem", self.problem.strip())
         check_int("seed", self.seed, minimum=0)
         if self.budget is not None:
@@ -147,7 +159,6 @@ class RunSettings:
                 "an oracle that answers 'can't tell' needs tie_threshold > 0 (else its "
                 "answers are refused)",
             )
-        options = _check_options("optimizer_options", self.optimizer_options)
         for reserved in ("dim", "seed", "budget", "initial_design", "tie_threshold"):
             if reserved in options:
                 raise SettingError(

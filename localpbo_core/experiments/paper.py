@@ -17,6 +17,10 @@ to set beside ours there. Used by ``localpbo report`` and the compute benchmarks
 
 from __future__ import annotations
 
+PAPER_SEEDS = tuple(range(10))
+"""The paper's runs per experiment (Sec. 6, its settings table: 10 runs): the seeds a group
+needs to count as stored."""
+
 PAPER_SECONDS: dict[str, dict[str, float]] = {
     "hartmann6": {
         "sobol": 0.023,

@@ -24,9 +24,10 @@ A spec is a YAML file (the bundled ones are ``localpbo_core/experiments/*.yaml``
         label: gp8_l0.1              # required when options are given; default: the name
         options: {dim: 8, lengthscale: 0.1, instance: "{seed}"}
     algorithms:
-      - algorithm: prefsqp
-        label: prefsqp_full          # default: the algorithm name
-        options: {line_search: full}
+      - algorithm: prefsqp           # an algorithm, or a preset (localpbo_core.presets:
+                                     # its algorithm and options)
+        label: prefsqp_full          # default: the algorithm or preset name
+        options: {line_search: full} # joined to a preset's (which must not change)
     variants:                        # optional: settings per variant (e.g. noise levels)
       - label: noise0.05
         settings: {noise_fraction: 0.05}
@@ -218,6 +219,7 @@ def load_spec(name_or_path: str | Path, validate: bool = True) -> ExperimentSpec
 def parse_spec(doc: object, path: str = "") -> ExperimentSpec:
     """Check the structure of a parsed spec document (no problem or algorithm is built)."""
     from localpbo_core.optimizers.registry import available_optimizers
+    from localpbo_core.presets import available_presets, expand
     from localpbo_core.problems import available_problems
 
     top = _mapping("spec", doc)
@@ -258,9 +260,20 @@ def parse_spec(doc: object, path: str = "") -> ExperimentSpec:
         where = f"algorithms[{i}]"
         entry = _mapping(where, item)
         _known_keys(where, entry, ("algorithm", "label", "options"))
-        aname = _name(f"{where}.algorithm", entry.get("algorithm"), available_optimizers())
+        aname = _name(
+            f"{where}.algorithm",
+            entry.get("algorithm"),
+            available_optimizers() + available_presets(),
+        )
         label = _label(f"{where}.label", entry.get("label", aname))
-        options = dict(_mapping(f"{where}.options", entry.get("options", {})))
+        try:
+            aname, options = expand(
+                aname, dict(_mapping(f"{where}.options", entry.get("options", {})))
+            )
+        except SettingError as exc:
+            raise SettingError(
+                f"{where}.options.{exc.field.partition('.')[2]}", exc.reason
+            ) from None
         algorithms.append(_Entry(label, aname, options))
 
     variants = []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 from localpbo_ros.commands import add_subcommands, main, run_settings
 from localpbo_ros.optimizer_node import PARAMS, config_from_settings
@@ -101,3 +102,23 @@ def test_an_unknown_bridge_parameter_exits_2_with_the_near_name(tmp_path, capsys
     err = capsys.readouterr().err
     assert "unknown parameter 'trial_duraton_s' (did you mean 'trial_duration_s'?)" in err
     assert not out.exists() or list(out.iterdir()) == []  # no empty bag left behind
+
+
+def test_a_preset_is_recorded_as_its_algorithm_with_its_options() -> None:
+    """``localpbo run --algorithm prefsqp_all`` (the optimizer node's ``algorithm`` parameter)
+    makes the run config of PrefSQP with the preset's options given explicitly."""
+    from localpbo_core.presets import PRESETS
+
+    options = json.dumps(dict(PRESETS["prefsqp_all"].options))
+
+    def config(argv):
+        settings = {p.name: p.default for p in PARAMS}
+        settings.update(run_settings(parse(["run", "--task", "hartmann6", "--run-id", "r", *argv])))
+        checked = {p.name: p.check(settings[p.name]) for p in PARAMS}
+        return config_from_settings(checked)
+
+    preset = config(["--algorithm", "prefsqp_all"])
+    explicit = config(["--algorithm", "prefsqp", "--algorithm-options", options])
+    assert preset.algorithm == "prefsqp"
+    assert preset.options == explicit.options
+    assert preset == explicit

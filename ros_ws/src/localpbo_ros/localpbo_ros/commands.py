@@ -48,7 +48,12 @@ def add_subcommands(subparsers: Any) -> None:
         "failed, 2 refused.",
     )
     run.add_argument("--task", default=DEFAULT_PROBLEM, help="task, e.g. swimmer, hopper")
-    run.add_argument("--algorithm", default=DEFAULT_ALGORITHM, help="e.g. turpbo, sobol")
+    run.add_argument(
+        "--algorithm",
+        default=DEFAULT_ALGORITHM,
+        help="e.g. turpbo, sobol, or a preset (an algorithm with options, recorded as if "
+        "given explicitly), e.g. prefsqp_all",
+    )
     run.add_argument(
         "--budget",
         type=int,

@@ -54,6 +54,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn, Unpack
 
 from localpbo_core.optimizers import available_optimizers
+from localpbo_core.presets import available_presets
 from localpbo_core.problems import available_problems
 from localpbo_core.session import Reason
 from localpbo_core.settings import (
@@ -109,8 +110,9 @@ PARAMS = [
     Param(
         "algorithm",
         DEFAULT_ALGORITHM,
-        "Preference optimizer.",
-        choices=tuple(available_optimizers()),
+        "Preference optimizer, or a preset (an algorithm with options, localpbo_core/presets.py; "
+        "recorded as that algorithm with its options).",
+        choices=(*available_optimizers(), *available_presets()),
     ),
     Param(
         "algorithm_options",

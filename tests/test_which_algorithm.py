@@ -1,0 +1,247 @@
+"""The results page's "Which algorithm to run" (:mod:`localpbo_core.experiments.beyond`) on
+fabricated runs whose counts are worked out here by hand, and the code's default against the
+evidence of the stored runs.
+
+With 10 seeds, paired differences of one sign and without ties give the exact Wilcoxon
+p = 2 / 2^10 = 0.00195 and equal values p = 1; Holm over 18 problems then adjusts 0.00195 to at
+most 18 × 0.00195 = 0.035 < 0.05, so every such difference stays significant, within a problem
+(3 or 4 algorithms) and across problems. (The differences are kept free of ties: scipy
+replaces the exact test by a slow permutation test when they tie.)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from localpbo_core.experiments.beyond import (
+    MAIN_PROBLEMS,
+    Standing,
+    evidence_choice,
+    evidence_folders,
+    goal_verdicts,
+    main_groups,
+    standings,
+    stored_choice,
+    which_algorithm_section,
+)
+from localpbo_core.report import StoredRun
+from localpbo_core.settings import DEFAULT_ALGORITHM
+
+ROOT = Path(__file__).resolve().parents[1]
+SEEDS = range(10)
+
+
+def _run(
+    spec: str,
+    problem: str,
+    label: str,
+    seed: int,
+    best: float,
+    cum: float,
+    seconds: float = 1.0,
+    *,
+    algorithm: str = "",
+    variant: str = "",
+    noise: float = 0.1,
+) -> StoredRun:
+    options: dict[str, object] = {}
+    name = problem
+    if problem.startswith("gp"):
+        dim, ls = problem[2:].split("_l")
+        options = {"dim": int(dim), "lengthscale": float(ls), "instance": seed}
+        name = "gp_sample"
+    return StoredRun(
+        spec=spec,
+        problem_label=problem,
+        algorithm_label=label,
+        variant=variant,
+        seed=seed,
+        within_model=spec.endswith("gp_within"),
+        settings={
+            "problem": name,
+            "algorithm": algorithm or label,
+            "seed": seed,
+            "problem_options": options,
+            "optimizer_options": {},
+            "budget": None,
+            "initial_design": 2,
+            "noise_fraction": noise,
+        },
+        best_seen=np.array([best - 1.0, best]),
+        cumulative=np.array([cum / 2, cum]),
+        optimizer_seconds=seconds,
+    )
+
+
+def _beyond(spec: str) -> str:
+    return {
+        "synthetic": "beyond_hybrid",
+        "gp_within": "beyond_hybrid_gp_within",
+        "gp_out_of_model": "beyond_hybrid_gp_out_of_model",
+        "policy_warm_start": "beyond_hybrid_policy",
+    }[spec]
+
+
+def _series(
+    spec: str,
+    problem: str,
+    label: str,
+    best: float,
+    cum: float,
+    seconds: float = 1.0,
+    spread: tuple[float, float] = (0.0, 0.0),
+    **kw: Any,
+) -> list[StoredRun]:
+    """Ten seeds at ``best`` and ``cum`` plus (0.01 + spread) × seed: two series of different
+    spreads differ by a distinct amount on each seed, of equal spreads by a constant."""
+    return [
+        _run(
+            spec,
+            problem,
+            label,
+            s,
+            best + (0.01 + spread[0]) * s,
+            cum + (0.01 + spread[1]) * s,
+            seconds,
+            **kw,
+        )
+        for s in SEEDS
+    ]
+
+
+def fixture_runs() -> list[StoredRun]:
+    """TuRPBO and Sobol in the paper specs, the hybrid in the beyond specs, on the 18
+    problems (index i in :data:`MAIN_PROBLEMS` order):
+
+    * final best-seen: the hybrid 1 above TuRPBO on i < 4, equal on 4 <= i < 16, 1 below on
+      i >= 16; Sobol 5 below both everywhere;
+    * final cumulative: the hybrid 1 above TuRPBO on i < 10, equal on 10 <= i < 14, 1 below
+      on i >= 14; Sobol 5 below both;
+    * seconds: TuRPBO 1, the hybrid 2, Sobol 0.5.
+    """
+    runs = []
+    for i, (spec, problem) in enumerate(MAIN_PROBLEMS):
+        db = 1.0 if i < 4 else (0.0 if i < 16 else -1.0)
+        dc = 1.0 if i < 10 else (0.0 if i < 14 else -1.0)
+        spread = (0.001 * (db != 0), 0.001 * (dc != 0))  # equal to TuRPBO: the same values
+        runs += _series(spec, problem, "turpbo", 10.0, 10.0, 1.0)
+        runs += _series(spec, problem, "sobol", 4.0, 4.0, 0.5, (0.002, 0.002))
+        runs += _series(_beyond(spec), problem, "hybrid", 10.0 + db, 10.0 + dc, 2.0, spread)
+    return runs
+
+
+def _by_name(table: list[Standing]) -> dict[str, Standing]:
+    return {s.algorithm: s for s in table}
+
+
+def test_counts_by_hand() -> None:
+    table = standings(main_groups(fixture_runs(), 0.05), 0.05)
+    s = _by_name(table)
+    # best or tied final: hybrid 4 (above) + 12 (equal, p = 1); TuRPBO 12 (equal) + 2 (above)
+    assert (s["hybrid"].run, s["hybrid"].best_final, s["hybrid"].best_cumulative) == (18, 16, 14)
+    assert (s["turpbo"].best_final, s["turpbo"].best_cumulative) == (14, 8)
+    assert (s["sobol"].best_final, s["sobol"].best_cumulative) == (0, 0)
+    assert (s["hybrid"].above, s["hybrid"].below) == (4, 2)
+    assert (s["sobol"].above, s["sobol"].below) == (0, 18)
+    assert (s["turpbo"].above, s["turpbo"].below, s["turpbo"].time_ratio) == (None, None, None)
+    assert s["hybrid"].time_ratio == pytest.approx(2.0)
+    assert s["sobol"].time_ratio == pytest.approx(0.5)
+    assert [x.algorithm for x in table] == ["hybrid", "turpbo", "sobol"]
+    assert evidence_choice(table) == "hybrid"
+    verdicts = [v for _, v in goal_verdicts(table, "hybrid")]
+    assert verdicts == ["met (16)", "met (4)", "missed by 2 (2)", "met (14)"]
+
+
+def test_merging_rules() -> None:
+    """Paper-spec labels keep the paper spec's runs; other conditions, variants, other specs
+    and incomplete seeds are left out."""
+    runs = fixture_runs()
+    spec, problem = MAIN_PROBLEMS[0]
+    extra = [
+        # a copy of TuRPBO in the beyond spec with other values: the paper spec's runs rule
+        *_series(_beyond(spec), problem, "turpbo", 0.0, 0.0),
+        # another noise level: not the same problem
+        *_series(_beyond(spec), problem, "loud", 99.0, 99.0, noise=0.2),
+        # an ablation spec and a variant: not merged
+        *_series("ablation_x", problem, "ablated", 99.0, 99.0),
+        *_series(_beyond(spec), problem, "varied", 99.0, 99.0, variant="v"),
+        # nine seeds only
+        *_series(_beyond(spec), problem, "short", 99.0, 99.0)[:9],
+    ]
+    groups = main_groups(runs + extra, 0.05)
+    first = next(g for g in groups if g.problem == problem)
+    assert sorted(first.best) == ["hybrid", "sobol", "turpbo"]
+    assert first.mean("best", "turpbo") == pytest.approx(10.045)
+    assert _by_name(standings(groups, 0.05)) == _by_name(standings(main_groups(runs, 0.05), 0.05))
+
+
+def test_choice_needs_every_problem_and_breaks_ties() -> None:
+    def row(name: str, run: int, final: int, cum: int) -> Standing:
+        return Standing(name, run, final, cum, None, None, None, ())
+
+    assert evidence_choice([row("a", 17, 17, 17), row("b", 18, 3, 1)]) == "b"
+    assert evidence_choice([row("a", 17, 17, 17)]) is None
+    assert evidence_choice([row("b", 18, 5, 2), row("a", 18, 5, 1)]) == "b"
+    assert evidence_choice([row("b", 18, 5, 2), row("a", 18, 5, 2)]) == "a"
+
+
+def test_goal_not_judgeable_without_every_problem() -> None:
+    runs = [
+        r
+        for r in fixture_runs()
+        if not (r.algorithm_label == "hybrid" and r.problem_label == "hartmann6")
+    ]
+    table = standings(main_groups(runs, 0.05), 0.05)
+    verdicts = [v for _, v in goal_verdicts(table, "hybrid")]
+    assert verdicts[0] == "not judgeable (run on 17 of 18, so far 15)"
+    assert evidence_choice(table) == "turpbo"  # the hybrid no longer ran every problem
+    none = [v for _, v in goal_verdicts(table, "absent")]
+    assert none == ["not judgeable (run on 0 of 18)"] * 4
+
+
+def test_section_renders() -> None:
+    runs = fixture_runs()
+    runs += [
+        _run(
+            _beyond(r.spec),
+            r.problem_label,
+            "hybrid_c0.5",
+            r.seed,
+            float(r.best_seen[-1]),
+            float(r.cumulative[-1]),
+            algorithm="hybrid",
+        )
+        for r in runs
+        if r.algorithm_label == "sobol"
+    ]
+    text = "\n".join(which_algorithm_section(runs, 0.05))
+    assert text.startswith("## Which algorithm to run\n")
+    assert "| hybrid | 18 | 16 | 14 | 4 | 2 | 2× |" in text
+    assert "| turpbo | 18 | 14 | 8 | — | — | — |" in text
+    assert "`beyond_*` specs with stored runs: beyond_hybrid, beyond_hybrid_gp_out_of_model" in text
+    assert "It picks **hybrid** (best or tied on 16 of 18 in final best-seen, 14 in final " in text
+    assert f"the code's default (`DEFAULT_ALGORITHM`) is {DEFAULT_ALGORITHM}: they differ" in text
+    assert "`localpbo run --algorithm hybrid` runs it." in text
+    assert "| hybrid | met (16) | met (4) | missed by 2 (2) | met (14) |" in text
+    # Sobol's values under another label of the hybrid: tied with Sobol, 18 below TuRPBO
+    assert "| hybrid_c0.5 | not" not in text
+    assert (
+        "| hybrid_c0.5 | missed by 16 (0) | missed by 3 (0) | missed by 18 (18) "
+        "| missed by 12 (0) |" in text
+    )
+
+
+def test_default_algorithm_is_the_evidence_choice() -> None:
+    """The stored runs' choice (paper specs and beyond_* specs) is the code's default."""
+    from localpbo_core.report import load_runs
+
+    choice = stored_choice(load_runs(evidence_folders(ROOT / "docs" / "results")))
+    assert choice == DEFAULT_ALGORITHM, (
+        f"the stored runs pick {choice!r}, the code's DEFAULT_ALGORITHM is "
+        f"{DEFAULT_ALGORITHM!r}: change localpbo_core/settings.py (docs/RESULTS.md, "
+        "'Which algorithm to run')"
+    )
