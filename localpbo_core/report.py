@@ -630,6 +630,9 @@ def write_report(
             f"![gp]({prefix}gp_summary.png)",
             "",
         ]
+    from localpbo_core.experiments import prefsqp_diagnosis
+
+    lines += prefsqp_diagnosis.section(prefsqp_diagnosis.section_folders(paths))
     lines += [
         "## Coverage",
         "",
