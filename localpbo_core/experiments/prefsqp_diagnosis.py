@@ -473,17 +473,18 @@ def section(
         "PrefSQP (Sec. 5.2, App. C.4) duels `d` points of the ball of radius 0.05 around its "
         "iterate `x_t` against `x_t`, refits, and steps along the Newton direction of the "
         "posterior mean, with no duel between `x_t` and `x_{t+1}`. Diagnostics of the stored "
-        f"runs of the folders {', '.join(f'`{n}`' for n in names)} of the inputs"
+        f"runs in the folders {', '.join(f'`{n}`' for n in names)} of the inputs"
         + (
-            f" (the section would also read {', '.join(f'`{n}`' for n in absent)}, "
-            "where the noise-free runs are: none stored among the inputs)"
+            f" ({' and '.join(f'`{n}`' for n in absent)}, which hold noise-free runs, "
+            "would be read too; they are not among the inputs)"
             if absent
             else ""
         )
         + ", a configuration stored by several specs counted once, means over the seeds, "
         "nothing re-run "
         "(`localpbo_core/experiments/prefsqp_diagnosis.py`, which defines every column). "
-        "*flipped*: decisive duels won by the truly worse point; *median |Δ|/σ*: the true "
+        "*flipped*: decisive duels won by the truly worse point (near one half, the duels "
+        "carry almost no information about the function); *median |Δ|/σ*: the true "
         "difference of the dueled pairs in units of the oracle's noise σ; *at a bound*: "
         "proposed coordinates within 1 % of the box's edge (uniform points: 2 %); *better "
         "moves*: changes of the point the duels are against (PrefSQP's `x_t`, GIPBO's duel "
