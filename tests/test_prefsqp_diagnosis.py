@@ -236,7 +236,7 @@ def test_section_folders_and_selection(tmp_path: Path) -> None:
 
 def test_section_renders_the_hand_counted_row(tmp_path: Path) -> None:
     root = _results(tmp_path)
-    lines = section(section_folders([root]), tmp_path / "absent.json")
+    lines = section(section_folders([root]), tmp_path / "absent")
     assert lines[0] == "## PrefSQP: what keeps it behind"
     text = "\n".join(lines)
     assert "`synthetic`, `ablation_noise`" in text and "`ablation_prefsqp_causes`" in text
@@ -255,7 +255,8 @@ def test_section_renders_the_hand_counted_row(tmp_path: Path) -> None:
 
 def test_section_shows_the_gradient_file(tmp_path: Path) -> None:
     root = _results(tmp_path)
-    grad = tmp_path / "g.json"
+    (tmp_path / "grad").mkdir()
+    grad = tmp_path / "grad" / "prefsqp_gradients.json"
     grad.write_text(
         json.dumps(
             {
@@ -278,19 +279,40 @@ def test_section_shows_the_gradient_file(tmp_path: Path) -> None:
             }
         )
     )
-    lines = section(section_folders([root]), grad)
+    (tmp_path / "grad" / "prefsqp_gradients_more.json").write_text(
+        json.dumps(
+            json.loads(grad.read_text())
+            | {
+                "command": "second",
+                "rows": [
+                    {
+                        "problem": "hartmann6",
+                        "algorithm": "prefsqp",
+                        "noise": 0.1,
+                        "runs": 1,
+                        "checkpoints": 1,
+                        "mean": 0.9,
+                        "std": 0.0,
+                    }
+                ],
+            }
+        )
+    )
+    lines = section(section_folders([root]), tmp_path / "grad")
     assert any(
         line.startswith("| hartmann6 | prefsqp | 0.1 |") and "| 0.12 (5) |" in line
         for line in lines
     )
-    assert "on 2 cores, Linux x86_64, 2026-01-01, in 12 s" in "\n".join(lines)
+    text = "\n".join(lines)
+    assert "(`prefsqp_gradients.json`) on 2 cores, Linux x86_64, 2026-01-01, in 12 s." in text
+    assert "second" not in text  # its only row is the first file's
 
 
 def test_no_section_without_prefsqp(tmp_path: Path) -> None:
     root = tmp_path / "results"
     write_run(root / "synthetic" / "runs" / "a.json.gz", _stored("turpbo", 0, 0.1))
     assert section(section_folders([root])) == []
-    assert table([]) == table([], None)
+    assert len(table([])) == 2  # the header only
 
 
 def test_the_results_page_carries_the_section(tmp_path: Path) -> None:

@@ -4,8 +4,9 @@ the noise: Sec. 6, App. D.1).
 
 ``python -m localpbo_core.experiments.prefsqp_diagnosis table FOLDERS...`` prints the table of
 :func:`section`; ``python -m localpbo_core.experiments.prefsqp_diagnosis gradients FOLDERS...
---out FILE`` measures the gradient cosine (below) and writes it to ``FILE`` (JSON), which the
-section reads (:data:`GRADIENTS`) because refitting is too slow for the page.
+--out FILE`` measures the gradient cosine (below) and writes it to ``FILE`` (JSON); the section
+reads every ``prefsqp_gradients*.json`` of :data:`GRADIENTS` because refitting is too slow for
+the page.
 
 Per problem, algorithm label and noise fraction (a row), means over the seeds of per-run
 figures. From :mod:`localpbo_core.experiments.diagnose` (not recomputed here):
@@ -89,8 +90,9 @@ CHECKPOINTS = 3
 FD_STEP = 1e-5
 """Finite-difference step of the true gradient, in the unit cube."""
 
-GRADIENTS = Path(__file__).resolve().parents[2] / "docs" / "diagnosis" / "prefsqp_gradients.json"
-"""The measured gradient cosines the section shows (written by the ``gradients`` command)."""
+GRADIENTS = Path(__file__).resolve().parents[2] / "docs" / "diagnosis"
+"""The folder of the measured gradient cosines the section shows: its files
+``prefsqp_gradients*.json``, written by the ``gradients`` command."""
 
 
 @dataclass(frozen=True)
@@ -383,13 +385,22 @@ def measure_gradients(
     return rows
 
 
-def read_gradients(path: Path | None = None) -> dict[str, Any] | None:
-    """The gradient file (:data:`GRADIENTS` by default), None if there is none."""
-    path = GRADIENTS if path is None else path
-    if not path.is_file():
-        return None
-    data: dict[str, Any] = json.loads(path.read_text())
-    return data
+def read_gradients(folder: Path | None = None) -> list[dict[str, Any]]:
+    """The gradient files ``prefsqp_gradients*.json`` of ``folder`` (:data:`GRADIENTS` by
+    default), sorted by name; a row that an earlier file holds is dropped from later ones."""
+    folder = GRADIENTS if folder is None else folder
+    out: list[dict[str, Any]] = []
+    seen: set[tuple[str, str, float]] = set()
+    for path in sorted(folder.glob("prefsqp_gradients*.json")) if folder.is_dir() else []:
+        data: dict[str, Any] = json.loads(path.read_text())
+        rows = []
+        for r in data.get("rows") or []:
+            key = (str(r["problem"]), str(r["algorithm"]), float(r["noise"]))
+            if key not in seen:
+                seen.add(key)
+                rows.append(r)
+        out.append(data | {"rows": rows, "file": path.name})
+    return out
 
 
 # ---------------------------------------------------------------------- the section
@@ -406,12 +417,13 @@ def _algorithm_order(algorithm: str) -> tuple[int, str]:
     return (ALGORITHMS.index(algorithm) if algorithm in ALGORITHMS else len(ALGORITHMS), algorithm)
 
 
-def table(figures: Sequence[RunFigures], gradients: dict[str, Any] | None = None) -> list[str]:
+def table(figures: Sequence[RunFigures], gradients: Sequence[dict[str, Any]] = ()) -> list[str]:
     """The section's Markdown table: one row per problem, algorithm label and noise fraction,
-    means over the seeds (module docstring); ``gradients``: the gradient file's content."""
+    means over the seeds (module docstring); ``gradients``: :func:`read_gradients`."""
     cosines = {
         (r["problem"], r["algorithm"], float(r["noise"])): r
-        for r in ((gradients or {}).get("rows") or [])
+        for g in gradients
+        for r in g.get("rows") or []
     }
     lines = [
         "| problem | algorithm | noise | runs | flipped | median \\|Δ\\|/σ | at a bound "
@@ -458,15 +470,15 @@ def section(
     names: Sequence[str] | None = None,
 ) -> list[str]:
     """The results page's section "PrefSQP: what keeps it behind" from the runs under
-    ``folders`` (empty if there is no run of the paper's PrefSQP); ``gradients``: the
-    gradient file (:data:`GRADIENTS` by default); ``names``: how the prose names the folders
-    (their names by default)."""
+    ``folders`` (empty if there is no run of the paper's PrefSQP); ``gradients``: the folder
+    of the gradient files (:data:`GRADIENTS` by default); ``names``: how the prose names the
+    folders (their names by default)."""
     figures, _ = load_figures(folders)
     if not figures:
         return []
     names = [Path(f).name for f in folders] if names is None else list(names)
     absent = [s for s in SPECS if s not in names]
-    grad = read_gradients(gradients)
+    grad = [g for g in read_gradients(gradients) if g["rows"]]
     lines = [
         "## PrefSQP: what keeps it behind",
         "",
@@ -498,23 +510,29 @@ def section(
         *table(figures, grad),
         "",
     ]
-    if grad is None:
-        lines += [
+    if not grad:
+        return [
+            *lines,
             "*gradient cosine*: not measured for these runs (`python -m "
-            "localpbo_core.experiments.prefsqp_diagnosis gradients` writes it to "
-            "`docs/diagnosis/prefsqp_gradients.json`).",
+            "localpbo_core.experiments.prefsqp_diagnosis gradients` writes it into "
+            "`docs/diagnosis/`).",
             "",
         ]
-    else:
-        lines += [
-            "*gradient cosine*: mean cosine between the refitted posterior mean's gradient "
-            "`∇μ(x_t)` and the true gradient at the step's origin, at up to "
-            f"{grad.get('checkpoints_per_run', CHECKPOINTS)} steps per run (in brackets: the "
-            "checkpoints measured; module docstring). Too slow to refit for the page, it is "
-            f"read from `docs/diagnosis/prefsqp_gradients.json`, measured by `{grad['command']}` "
-            f"on {grad['machine']}, {grad['date']}, in {float(grad['seconds']):.0f} s.",
-            "",
-        ]
+    lines += [
+        "*gradient cosine*: mean cosine between the refitted posterior mean's gradient "
+        "`∇μ(x_t)` and the true gradient at the step's origin, at up to "
+        f"{grad[0].get('checkpoints_per_run', CHECKPOINTS)} steps per run (in brackets: the "
+        "checkpoints measured; module docstring). Too slow to refit for the page, it is read "
+        "from `docs/diagnosis/`, measured by",
+        "",
+    ]
+    for g in grad:
+        lines.append(
+            f"* `{g['command']}` (`{g['file']}`) on {g['machine']}, {g['date']}, "
+            f"in {float(g['seconds']):.0f} s;"
+        )
+    lines[-1] = lines[-1][:-1] + "."
+    lines.append("")
     return lines
 
 
