@@ -43,12 +43,13 @@ refitted on the points and duels before the step, hyperparameters learned (Lapla
 the first checkpoint from the default start, each later one warm-started from the previous
 checkpoint's fit (the run itself warm-started from every phase's fit, so the hyperparameters
 may differ from the run's); the cosine is between the posterior mean's gradient
-``∇μ(x_t)`` (eq. (10)) at the step's origin and the true gradient there, by central finite
+``∇μ(x_t)`` (eq. (10)) at the step's origin (without steps: at the reference point before
+the move, TuRPBO's incumbent) and the true gradient there, by central finite
 differences of the problem's true value in the unit cube (one-sided on a face), step
 :data:`FD_STEP`. Deterministic for given runs.
 
 A configuration (problem, algorithm label, noise fraction, seed) that several specs store is
-counted once (the first in :data:`SPECS` order).
+counted once: the first read, in the order of the folders (the page's: :data:`SPECS`).
 """
 
 from __future__ import annotations
@@ -520,7 +521,8 @@ def section(
         ]
     lines += [
         "*gradient cosine*: mean cosine between the refitted posterior mean's gradient "
-        "`∇μ(x_t)` and the true gradient at the step's origin, at up to "
+        "`∇μ(x_t)` and the true gradient at the step's origin `x_t` (TuRPBO: at its "
+        "incumbent before a move), at up to "
         f"{grad[0].get('checkpoints_per_run', CHECKPOINTS)} steps per run (in brackets: the "
         "checkpoints measured; module docstring). Too slow to refit for the page, it is read "
         "from `docs/diagnosis/`, measured by",
