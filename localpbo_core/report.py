@@ -46,6 +46,7 @@ from localpbo_core.experiments.paper import (
     paper_seconds,
     problem_key,
 )
+from localpbo_core.run_documents import run_files
 from localpbo_core.settings import SettingError
 
 
@@ -73,20 +74,6 @@ class StoredRun:
 
 
 # ---------------------------------------------------------------------- loading
-def run_files(paths: Iterable[str | Path]) -> list[Path]:
-    """Every run file under ``paths`` (folders searched for ``runs/*.json[.gz]``), sorted."""
-    found: set[Path] = set()
-    for p in map(Path, paths):
-        if p.is_dir():
-            for pattern in ("*.json.gz", "*.json"):
-                found.update(q for q in p.rglob(pattern) if q.parent.name == "runs")
-        elif p.is_file():
-            found.add(p)
-        else:
-            raise SettingError("results", f"{p} does not exist")
-    return sorted(found)
-
-
 def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     """Read every run under ``paths`` (:func:`run_files`). A folder's ``stored_code.json``
     dates the runs stored without a code version by the commit that stored them, its
@@ -705,6 +692,11 @@ def write_report(
             "",
         ]
     lines += which_algorithm_section(runs, alpha)
+    from localpbo_core.experiments import prefsqp_diagnosis
+
+    lines += prefsqp_diagnosis.section(
+        prefsqp_diagnosis.section_folders(paths), complete_seeds=complete_seeds
+    )
     lines += [
         "## Coverage",
         "",

@@ -1,14 +1,16 @@
 """Run documents: one finished run as JSON (schema ``localpbo/run/v1``), as ``localpbo bench``
-writes it under ``runs/`` and sweeps store it (:mod:`localpbo_core.sweep`)."""
+writes it under ``runs/`` and sweeps store it (:mod:`localpbo_core.sweep`), and where such
+files are found (:func:`run_files`)."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from localpbo_core.loop import RESULT_COLUMNS, RunTrace
-from localpbo_core.settings import RunSettings
+from localpbo_core.settings import RunSettings, SettingError
 
 
 def run_file_name(settings: RunSettings) -> str:
@@ -64,3 +66,17 @@ def write_trace(settings: RunSettings, trace: RunTrace, path: Path) -> None:
     """One run as JSON (:func:`trace_document`). Floats are written exactly (JSON's
     shortest round-trip representation)."""
     path.write_text(json.dumps(trace_document(settings, trace), default=str) + "\n")
+
+
+def run_files(paths: Iterable[str | Path]) -> list[Path]:
+    """Every run file under ``paths`` (folders searched for ``runs/*.json[.gz]``), sorted."""
+    found: set[Path] = set()
+    for p in map(Path, paths):
+        if p.is_dir():
+            for pattern in ("*.json.gz", "*.json"):
+                found.update(q for q in p.rglob(pattern) if q.parent.name == "runs")
+        elif p.is_file():
+            found.add(p)
+        else:
+            raise SettingError("results", f"{p} does not exist")
+    return sorted(found)

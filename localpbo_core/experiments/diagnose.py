@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from localpbo_core.problems.registry import make_problem
-from localpbo_core.report import run_files
+from localpbo_core.run_documents import run_files
 
 EDGE = 0.01
 """A coordinate is "at a bound" within this fraction of its box side."""

@@ -122,7 +122,7 @@ def _has_code(path: Path) -> tuple[bool, str]:
 
 def stored_code(root: Path = ROOT) -> dict[str, Any]:
     """The document of the module docstring for the runs committed under ``root``."""
-    from localpbo_core.report import run_files
+    from localpbo_core.run_documents import run_files
 
     folders = [root / f for f in FOLDERS if (root / f).is_dir()]
     files = [p.relative_to(root).as_posix() for p in run_files(folders)]
