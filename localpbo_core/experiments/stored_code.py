@@ -10,7 +10,8 @@ code or an older one.
 ``python -m localpbo_core.experiments.stored_code`` writes ``docs/results/stored_code.json``:
 
 * ``runs``: for every stored run under ``docs/results`` and ``docs/pending`` without a
-  ``code`` block, its path (relative to the file's folder) and the commit that stored it;
+  ``code`` block, its path (relative to the file's folder) and the commit that stored it (for
+  a copy made by ``localpbo sweep --reuse``, the commit that stored its source);
 * ``commits``: for each such commit, the digests :func:`localpbo_core.provenance.code_block`
   would have given there, computed from the commit's files with today's lists of sources
   (:data:`~localpbo_core.provenance.RUN_SOURCES`,
@@ -55,17 +56,18 @@ def _git(root: Path, *args: str, data: bytes | None = None) -> bytes:
 
 def storing_commits(root: Path, paths: Sequence[str]) -> dict[str, str]:
     """``{path: commit}``: for each committed file in ``paths`` (relative to ``root``), the
-    oldest commit that added a file with the same bytes anywhere (module docstring)."""
+    oldest commit that added or rewrote a file with the same bytes anywhere (module
+    docstring)."""
     first: dict[str, str] = {}
     log = _git(
-        root, "log", "--diff-filter=A", "--raw", "--no-abbrev", "--no-renames", "--format=C %H"
+        root, "log", "--diff-filter=AM", "--raw", "--no-abbrev", "--no-renames", "--format=C %H"
     )
     commit = ""
     for line in log.decode().splitlines():
         if line.startswith("C "):
             commit = line[2:]
         elif line.startswith(":"):
-            blob = line.split()[3]
+            blob = line.split()[3]  # the new side of an added or modified file
             first[blob] = commit  # the log runs newest first: the last one seen is oldest
     out: dict[str, str] = {}
     for line in _git(root, "ls-files", "-s", "--", *paths).decode().splitlines():
@@ -113,11 +115,13 @@ def code_at(root: Path, commit: str, algorithms: Iterable[str]) -> dict[str, Any
     }
 
 
-def _has_code(path: Path) -> tuple[bool, str]:
+def _has_code(path: Path) -> tuple[bool, str, str]:
+    """Whether the run carries a code block, its algorithm, and the run it was copied from."""
     from localpbo_core.sweep import read_run
 
     doc = read_run(path)
-    return isinstance(doc.get("code"), dict), str(doc["settings"]["algorithm"])
+    reused = str((doc.get("run") or {}).get("reused_from", ""))
+    return isinstance(doc.get("code"), dict), str(doc["settings"]["algorithm"]), reused
 
 
 def stored_code(root: Path = ROOT) -> dict[str, Any]:
@@ -127,12 +131,23 @@ def stored_code(root: Path = ROOT) -> dict[str, Any]:
     folders = [root / f for f in FOLDERS if (root / f).is_dir()]
     files = [p.relative_to(root).as_posix() for p in run_files(folders)]
     commits = storing_commits(root, files)
+    tracked = set(_git(root, "ls-files", "--", *FOLDERS).decode().splitlines())
+    files = [f for f in files if f in tracked]
     home = (root / OUTPUT).parent
     runs: dict[str, str] = {}
     algorithms: dict[str, set[str]] = {}
     for rel in files:
-        has_code, algorithm = _has_code(root / rel)
-        if has_code or rel not in commits:
+        has_code, algorithm, reused_from = _has_code(root / rel)
+        if has_code:
+            continue
+        if reused_from:
+            # a copy (localpbo sweep --reuse) was made by the code that made its source
+            spec, run_id = reused_from.split("/", 1)
+            folder = Path(rel).parent.parent.parent
+            source = folder / spec / "runs" / f"{run_id}.json.gz"
+            if source.as_posix() in commits:
+                commits[rel] = commits[source.as_posix()]
+        if rel not in commits:
             continue
         runs[os.path.relpath(root / rel, home)] = commits[rel]
         algorithms.setdefault(commits[rel], set()).add(algorithm)
