@@ -287,25 +287,19 @@ class JudgeNode(FollowerNode):
 
     # ------------------------------------------------------------------ callbacks
     def _on_candidate(self, msg: object) -> None:
-        if self.hold(self._on_candidate, msg):
-            return
-        cand = self.candidate(msg)
+        cand = self.admitted(self._on_candidate, self.candidate, msg)
         if cand is not None:
             self.core.on_candidate(cand)
 
     def _on_result(self, msg: object) -> None:
-        if self.hold(self._on_result, msg):
-            return
-        res = self.result(msg)  # of this run, for a candidate id in its range
+        res = self.admitted(self._on_result, self.result, msg)  # a candidate id in range
         if res is None:
             return
         for outcome in self.core.on_result(res):
             self._pub.publish(outcome.encode())
 
     def _on_request(self, msg: object) -> None:
-        if self.hold(self._on_request, msg):
-            return
-        req = self.request(msg)  # of this run, ids in its range
+        req = self.admitted(self._on_request, self.request, msg)  # ids in the run's range
         if req is None:
             return
         stored = self.core.on_request(req)
