@@ -51,16 +51,8 @@ from typing import NamedTuple, TypedDict, Unpack
 
 import numpy as np
 
+from . import episode
 from .ars import load_ars_policy
-from .episode import (
-    HOPPER_V5,
-    SWIMMER_V5,
-    WALKER2D_V5,
-    EnvSpec,
-    EpisodeResult,
-    EpisodeRunner,
-    Recording,
-)
 
 TRUE_VALUE_SEEDS: tuple[int, ...] = (1_000_003, 1_000_033, 1_000_037, 1_000_039, 1_000_081)
 """Reset seeds whose mean return defines ``true_value`` (fixed for every task and run)."""
@@ -123,14 +115,14 @@ class ThetaFromWeights(NamedTuple):
 @dataclass(frozen=True)
 class _TaskConfig:
     name: str
-    spec: EnvSpec
+    spec: episode.EnvSpec
     ars_task: str | None
 
 
 _TASKS: dict[str, _TaskConfig] = {
-    "hopper": _TaskConfig("hopper", HOPPER_V5, "hopper"),
-    "walker2d": _TaskConfig("walker2d", WALKER2D_V5, "walker2d"),
-    "swimmer": _TaskConfig("swimmer", SWIMMER_V5, None),
+    "hopper": _TaskConfig("hopper", episode.HOPPER_V5, "hopper"),
+    "walker2d": _TaskConfig("walker2d", episode.WALKER2D_V5, "walker2d"),
+    "swimmer": _TaskConfig("swimmer", episode.SWIMMER_V5, None),
 }
 
 
@@ -220,7 +212,7 @@ class LinearPolicyTask:
         self.around_ars = None if around_ars is None else float(around_ars)
         spec = config.spec
         if spec.kind == "planar_walker" and not alive_bonus:
-            spec = EnvSpec(**{**spec.__dict__, "healthy_reward": 0.0})
+            spec = episode.EnvSpec(**{**spec.__dict__, "healthy_reward": 0.0})
         self.name = name
         self.alive_bonus = alive_bonus
         self.spec = spec
@@ -228,7 +220,7 @@ class LinearPolicyTask:
         self.weight_high = high
         self.goal = GOALS[name]
         self.episode_steps = episode_steps
-        self._runner = EpisodeRunner(spec)
+        self._runner = episode.EpisodeRunner(spec)
         self.obs_dim = self._runner.obs_dim
         self.action_dim = self._runner.action_dim
         self.dim = self.obs_dim * self.action_dim
@@ -310,7 +302,7 @@ class LinearPolicyTask:
         return ThetaFromWeights(np.clip(theta, 0.0, 1.0), clipped)
 
     # -- episodes ----------------------------------------------------------------------
-    def rollout_weights(self, weights: np.ndarray, seed: int) -> EpisodeResult:
+    def rollout_weights(self, weights: np.ndarray, seed: int) -> episode.EpisodeResult:
         """One episode of an arbitrary weight matrix (not restricted to the box)."""
         w = np.asarray(weights, dtype=np.float64)
         if w.shape != (self.action_dim, self.obs_dim):
@@ -321,7 +313,7 @@ class LinearPolicyTask:
             w, self.obs_mean, self.obs_std, _check_seed(seed), self.episode_steps
         )
 
-    def rollout(self, theta: np.ndarray, seed: int) -> EpisodeResult:
+    def rollout(self, theta: np.ndarray, seed: int) -> episode.EpisodeResult:
         """One episode of theta's policy with reset noise from ``seed`` (return, steps, ...)."""
         return self.rollout_weights(self.policy_from_theta(theta), seed)
 
@@ -352,7 +344,7 @@ class LinearPolicyTask:
         weights = self._weights_of(x)
         return self.rollout_weights(weights, seed).episode_return
 
-    def record_native(self, x: np.ndarray, seed: int, stride: int = 4) -> Recording:
+    def record_native(self, x: np.ndarray, seed: int, stride: int = 4) -> episode.Recording:
         """The episode of :meth:`evaluate_native` (same return) with the limbs' positions
         every ``stride`` control steps (:meth:`EpisodeRunner.record_linear`), for replaying
         it; ``x`` must lie in the box as for :meth:`evaluate_native`."""

@@ -3,12 +3,45 @@ against scipy and a published example, the best/underline marking."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import pytest
 from scipy.stats import wilcoxon
 from statsmodels.stats.multitest import multipletests
 
 from localpbo_core.experiments.comparisons import compare, holm, paired_wilcoxon
+
+if TYPE_CHECKING:
+    from localpbo_core.report import StoredRun
+
+
+def stored_run(
+    problem_label: str,
+    algorithm_label: str,
+    settings: dict[str, Any],
+    *,
+    spec: str = "s",
+    seed: int = 0,
+    optimizer_seconds: float = 0.0,
+    code: dict[str, Any] | None = None,
+) -> StoredRun:
+    """A stored run of one-point traces with these labels and settings."""
+    from localpbo_core.report import StoredRun
+
+    return StoredRun(
+        spec=spec,
+        problem_label=problem_label,
+        algorithm_label=algorithm_label,
+        variant="",
+        seed=seed,
+        within_model=False,
+        settings=settings,
+        best_seen=np.zeros(1),
+        cumulative=np.zeros(1),
+        optimizer_seconds=optimizer_seconds,
+        code=code,
+    )
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -49,21 +82,10 @@ def test_compare_marks_best_and_ties() -> None:
 
 
 def test_gp_summary_leaves_out_ablation_variants() -> None:
-    from localpbo_core.report import StoredRun, gp_summary_runs
+    from localpbo_core.report import gp_summary_runs
 
     def run(problem: str, algorithm: str, label: str) -> StoredRun:
-        return StoredRun(
-            spec="s",
-            problem_label=problem,
-            algorithm_label=label,
-            variant="",
-            seed=0,
-            within_model=False,
-            settings={"problem": problem, "algorithm": algorithm},
-            best_seen=np.zeros(1),
-            cumulative=np.zeros(1),
-            optimizer_seconds=0.0,
-        )
+        return stored_run(problem, label, {"problem": problem, "algorithm": algorithm})
 
     runs = [
         run("gp_sample", "turpbo", "turpbo"),
@@ -76,17 +98,13 @@ def test_gp_summary_leaves_out_ablation_variants() -> None:
 
 def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() -> None:
     from localpbo_core.experiments.paper import paper_seconds
-    from localpbo_core.report import StoredRun, compute_table
+    from localpbo_core.report import compute_table
 
     def run(problem: str, label: str, problem_options: dict, **settings: object) -> StoredRun:
-        return StoredRun(
-            spec="s",
-            problem_label=label,
-            algorithm_label="sobol",
-            variant="",
-            seed=0,
-            within_model=False,
-            settings={
+        return stored_run(
+            label,
+            "sobol",
+            {
                 "problem": problem,
                 "algorithm": "sobol",
                 "optimizer_options": {},
@@ -95,8 +113,6 @@ def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() 
                 "noise_fraction": 0.1,
                 **settings,
             },
-            best_seen=np.zeros(1),
-            cumulative=np.zeros(1),
             optimizer_seconds=1.1,
         )
 
@@ -125,7 +141,6 @@ def test_provenance_per_run_group_and_spec() -> None:
         CODE_CHANGED,
         CODE_CURRENT,
         CODE_NONE,
-        StoredRun,
         code_cell,
         code_state,
         provenance_table,
@@ -134,19 +149,8 @@ def test_provenance_per_run_group_and_spec() -> None:
     today = code_block("turpbo")
 
     def run(spec: str, problem: str, seed: int, code: dict | None) -> StoredRun:
-        return StoredRun(
-            spec=spec,
-            problem_label=problem,
-            algorithm_label="turpbo",
-            variant="",
-            seed=seed,
-            within_model=False,
-            settings={"problem": problem, "algorithm": "turpbo"},
-            best_seen=np.zeros(1),
-            cumulative=np.zeros(1),
-            optimizer_seconds=0.0,
-            code=code,
-        )
+        settings = {"problem": problem, "algorithm": "turpbo"}
+        return stored_run(problem, "turpbo", settings, spec=spec, seed=seed, code=code)
 
     old = {**today, "algorithm_digest": "0" * 16, "commit": "abcdef123456", "dirty": True}
     runs = [
@@ -248,22 +252,12 @@ def test_runs_without_code_are_dated_by_their_storing_commit(tmp_path) -> None:
 def test_complete_groups_keep_only_groups_with_every_seed() -> None:
     """``--complete-seeds``: a group enters the tables only with every seed stored; seeds
     outside the set are left out; a bad seed list is refused naming the flag."""
-    from localpbo_core.report import StoredRun, _seeds_of, complete_groups
+    from localpbo_core.report import _seeds_of, complete_groups
     from localpbo_core.settings import SettingError
 
     def run(problem: str, algorithm: str, seed: int) -> StoredRun:
-        return StoredRun(
-            spec="s",
-            problem_label=problem,
-            algorithm_label=algorithm,
-            variant="",
-            seed=seed,
-            within_model=False,
-            settings={"problem": problem, "algorithm": algorithm},
-            best_seen=np.zeros(1),
-            cumulative=np.zeros(1),
-            optimizer_seconds=0.0,
-        )
+        settings = {"problem": problem, "algorithm": algorithm}
+        return stored_run(problem, algorithm, settings, seed=seed)
 
     runs = [run("p", "a", s) for s in range(4)] + [run("p", "b", s) for s in (0, 2)]
     runs += [run("q", "a", s) for s in (0, 1, 2)]

@@ -31,7 +31,6 @@ selection of initial conditions that BoTorch draws from torch's global RNG.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Unpack
 
 import numpy as np
@@ -47,32 +46,21 @@ from botorch.utils.sampling import manual_seed
 
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.botorch_adapter import SurrogateModel
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    RunOptions,
-    check_multistart,
-    step_generator,
-)
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
-from localpbo_core.surrogate.protocol import Surrogate
+from localpbo_core.optimizers.gp_acquisition import GPAcquisitionOptimizer, GPAcquisitionOptions
+from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.validation import check_int
 
 
-class QEUBO(PreferenceOptimizer):
+class QEUBO(GPAcquisitionOptimizer):
     """qEUBO / EUBO-against-the-previous-winner baseline behind the ask/tell contract.
 
     Args:
-        dim, seed, budget, initial_design, warm_start: see ``PreferenceOptimizer``.
+        dim, seed, budget, initial_design, warm_start, hyperparameter_refit_every,
+            hyperparameters: see ``GPAcquisitionOptimizer``.
         batch_size: q >= 1 new points per iteration (paper: 1; App. D.7 also 2 and 4).
-        num_restarts: ``optimize_acqf`` restarts (shared PairwiseGP table: 5).
-        num_raw_samples: ``optimize_acqf`` raw samples (table: 1024).
+        num_raw_samples: ``optimize_acqf`` raw samples (shared PairwiseGP table: 1024).
+        num_restarts: ``optimize_acqf`` restarts (table: 5).
         num_mc_samples: QMC base samples of qEUBO for q > 1.
-        hyperparameter_refit_every: k >= 1. Default 1 (faithful): learn the GP
-            hyperparameters at every iteration. With k > 1 they are learned at every k-th
-            iteration only and held in between (the Laplace MAP is still refit on all data
-            every iteration). A speed option, not the paper's (same as TuRPBO's).
-        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
     """
 
     name = "qeubo"
@@ -82,33 +70,17 @@ class QEUBO(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        batch_size: int = 1,
-        num_restarts: int = 5,
-        num_raw_samples: int = 1024,
         num_mc_samples: int = 256,
-        hyperparameter_refit_every: int = 1,
-        hyperparameters: Mapping[str, object] | None = None,
-        **run: Unpack[RunOptions],
+        **options: Unpack[GPAcquisitionOptions],
     ) -> None:
-        super().__init__(dim, seed, budget, **run)
-        self.batch_size = check_int("batch_size", batch_size)
-        self.num_restarts, self.num_raw_samples = check_multistart(num_restarts, num_raw_samples)
+        super().__init__(dim, seed, budget, **options)
         self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
-        self._refitter = SurrogateRefitter.for_options(
-            hyperparameter_refit_every, hyperparameters, self.dim, self.tie_threshold
-        )
-        self.hyperparameter_refit_every = self._refitter.every
         # Bracket state for q > 1: survivors of the current round and the next duels.
         self._survivors: list[int] = []
         self._next_duels: list[Duel] = []
         self._final_pending = False
 
     # ------------------------------------------------------------------ state
-    @property
-    def surrogate(self) -> Surrogate | None:
-        """The last fitted surrogate (None before the first iteration)."""
-        return self._refitter.surrogate
-
     @property
     def done(self) -> bool:
         """True when the budget is spent and no duel is pending or still to be asked."""
@@ -122,9 +94,6 @@ class QEUBO(PreferenceOptimizer):
             self._next_duels = []
             return self._open_step(Ask((), duels))
         return super().ask()
-
-    def _fit(self) -> Surrogate:
-        return self._refitter.refit(self.train_inputs(), self.comparisons(), self.ties())
 
     def select(self, q: int, rng: np.random.Generator) -> np.ndarray:
         """Refit and maximise (q)EUBO over [0,1]^d; returns ``(q, d)``."""

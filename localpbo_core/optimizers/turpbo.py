@@ -43,7 +43,6 @@ Decisions not fixed by the paper (documented here, in the README and the report)
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Unpack
 
 import numpy as np
@@ -56,13 +55,8 @@ from localpbo_core.optimizers.acquisition import (
     thompson_discrete,
 )
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
-from localpbo_core.optimizers.preference_optimizer import (
-    PreferenceOptimizer,
-    RunOptions,
-    check_multistart,
-    step_generator,
-)
-from localpbo_core.optimizers.surrogate_refit import SurrogateRefitter
+from localpbo_core.optimizers.gp_acquisition import GPAcquisitionOptimizer, GPAcquisitionOptions
+from localpbo_core.optimizers.preference_optimizer import step_generator
 from localpbo_core.optimizers.trust_region import (
     TREvent,
     TRStep,
@@ -70,30 +64,25 @@ from localpbo_core.optimizers.trust_region import (
     perturbed_candidates,
     trust_region_bounds,
 )
-from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import SettingError, check_choice, check_int
 
 ACQUISITIONS = ("ts", "ts_discrete", "qeubo", "ei")
 
 
-class TuRPBOOptions(RunOptions, total=False):
+class TuRPBOOptions(GPAcquisitionOptions, total=False):
     """The options of :class:`TuRPBO` (see its Args)."""
 
-    batch_size: int
     acquisition: str
-    num_raw_samples: int
-    num_restarts: int
     num_features: int
     num_mc_samples: int
-    hyperparameter_refit_every: int
-    hyperparameters: Mapping[str, object] | None
 
 
-class TuRPBO(PreferenceOptimizer):
+class TuRPBO(GPAcquisitionOptimizer):
     """Trust-region preferential BO (App. C.5) behind the ask/tell contract.
 
     Args:
-        dim, seed, budget, initial_design, warm_start: see ``PreferenceOptimizer``.
+        dim, seed, budget, initial_design, warm_start, hyperparameter_refit_every,
+            hyperparameters: see ``GPAcquisitionOptimizer``.
         batch_size: q >= 1 candidates per iteration (TuRPBO table: 1).
         acquisition: ``"ts"`` (Thompson sampling, default: each sample path maximised by
             L-BFGS-B from its best raw candidates), ``"ts_discrete"`` (Thompson sampling on
@@ -104,12 +93,6 @@ class TuRPBO(PreferenceOptimizer):
         num_restarts: L-BFGS-B restarts (table: 5).
         num_features: random features per pathwise sample path.
         num_mc_samples: fixed base samples for qEUBO with q > 1.
-        hyperparameter_refit_every: k >= 1. Default 1 (faithful): learn the GP
-            hyperparameters at every iteration. With k > 1 they are learned at every k-th
-            iteration only and held at the last learned values in between (the Laplace MAP
-            is still refit on all data every iteration). A speed option, not the paper's.
-        hyperparameters: fixed GP hyperparameters (App. D.4 within-model runs; see
-            :mod:`~localpbo_core.optimizers.surrogate_refit`). Default None: learned.
     """
 
     name = "turpbo"
@@ -119,20 +102,13 @@ class TuRPBO(PreferenceOptimizer):
         dim: int,
         seed: int,
         budget: int,
-        batch_size: int = 1,
         acquisition: str = "ts",
-        num_raw_samples: int = 1024,
-        num_restarts: int = 5,
         num_features: int = 1024,
         num_mc_samples: int = 512,
-        hyperparameter_refit_every: int = 1,
-        hyperparameters: Mapping[str, object] | None = None,
-        **run: Unpack[RunOptions],
+        **options: Unpack[GPAcquisitionOptions],
     ) -> None:
-        super().__init__(dim, seed, budget, **run)
-        self.batch_size = check_int("batch_size", batch_size)
+        super().__init__(dim, seed, budget, **options)
         self.acquisition = check_choice("acquisition", acquisition, ACQUISITIONS)
-        self.num_restarts, self.num_raw_samples = check_multistart(num_restarts, num_raw_samples)
         self.num_features = check_int("num_features", num_features)
         self.num_mc_samples = check_int("num_mc_samples", num_mc_samples)
         if self.acquisition == "ei" and self.batch_size > 1:
@@ -142,10 +118,6 @@ class TuRPBO(PreferenceOptimizer):
         self._center_challenged = True  # center known to be the global incumbent
         self._restart_pending = False
         self._challenge_duel: Duel | None = None
-        self._refitter = SurrogateRefitter.for_options(
-            hyperparameter_refit_every, hyperparameters, self.dim, self.tie_threshold
-        )
-        self.hyperparameter_refit_every = self._refitter.every
         self.region_history: list[TRStep] = []
 
     # ------------------------------------------------------------------ state
@@ -160,15 +132,6 @@ class TuRPBO(PreferenceOptimizer):
     def events(self) -> list[TREvent]:
         """What each iteration's update did to the region (:attr:`region_history`'s events)."""
         return [step.event for step in self.region_history]
-
-    @property
-    def surrogate(self) -> Surrogate | None:
-        """The last fitted surrogate (None before the first TuRPBO iteration)."""
-        return self._refitter.surrogate
-
-    # ------------------------------------------------------------------ model
-    def _fit(self) -> Surrogate:
-        return self._refitter.refit(self.train_inputs(), self.comparisons(), self.ties())
 
     # ------------------------------------------------------------------ ask / tell hooks
     def _propose(self, remaining: int) -> Ask:

@@ -195,6 +195,25 @@ def _rff_values(x_aug: np.ndarray, w_aug: np.ndarray, aw: np.ndarray) -> np.ndar
     return torch.from_numpy(z).cos_().numpy() @ aw
 
 
+def path_draws(
+    surrogate: Surrogate, num_paths: int, generator: torch.Generator, num_features: int
+) -> tuple[Tensor, Tensor, Tensor, Tensor, float]:
+    """The random draws of ``P = num_paths`` paths of ``F = num_features`` random Fourier
+    features each (module docstring), in the order they are taken from ``generator``: the
+    frequencies ``omega`` ``(P, F, d)`` (already divided by the lengthscales), the phases ``b``
+    ``(P, F)``, the weights ``w`` ``(P, F)``, the standard normal ``xi`` ``(p, P)`` of ``f_X``,
+    and the amplitude ``sqrt(2 s / F)``."""
+    dt = torch.float64
+    p, d = surrogate.train_inputs.shape
+    S, F = int(num_paths), int(num_features)
+    omega = torch.randn(S, F, d, generator=generator, dtype=dt) / surrogate.lengthscale.detach()
+    phase = 2.0 * math.pi * torch.rand(S, F, generator=generator, dtype=dt)
+    weights = torch.randn(S, F, generator=generator, dtype=dt)
+    xi = torch.randn(p, S, generator=generator, dtype=dt)
+    amp = math.sqrt(2.0 * float(surrogate.outputscale) / F)
+    return omega, phase, weights, xi, amp
+
+
 def draw_sample_paths(
     surrogate: Surrogate,
     num_paths: int,
@@ -207,17 +226,11 @@ def draw_sample_paths(
         raise ValueError("generator must be a torch.Generator")
     if num_paths < 1 or num_features < 1:
         raise ValueError("num_paths and num_features must be >= 1")
-    dt = torch.float64
     X = surrogate.train_inputs.detach()
-    p, d = X.shape
     ls = surrogate.lengthscale.detach()
     os_ = float(surrogate.outputscale)
-    S, F = int(num_paths), int(num_features)
-    omega = torch.randn(S, F, d, generator=generator, dtype=dt) / ls
-    phase = 2.0 * math.pi * torch.rand(S, F, generator=generator, dtype=dt)
-    weights = torch.randn(S, F, generator=generator, dtype=dt)
-    xi = torch.randn(p, S, generator=generator, dtype=dt)
-    amp = math.sqrt(2.0 * os_ / F)
+    S = int(num_paths)
+    omega, phase, weights, xi, amp = path_draws(surrogate, num_paths, generator, num_features)
 
     L = surrogate.chol_K
     LB = surrogate.chol_B

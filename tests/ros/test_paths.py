@@ -20,29 +20,19 @@ from localpbo_msgs_py import Status
 from localpbo_msgs_py.bag import read_messages
 from localpbo_msgs_py.topics import STATUS
 
-from .same_run import (
-    ALGORITHM,
-    BUDGET,
-    NOISE,
-    OPTIONS,
-    SEED,
-    TASK,
-    TASK_OPTIONS,
-    from_bag,
-    from_bench,
-)
+from . import same_run
 
 
 def node_parameters() -> dict[str, Any]:
     return {
         "run_id": "paths",
-        "algorithm": ALGORITHM,
-        "algorithm_options": json.dumps(OPTIONS),
-        "task": TASK,
-        "task_options": json.dumps(TASK_OPTIONS),
-        "seed": SEED,
-        "budget": BUDGET,
-        "noise_fraction": NOISE,
+        "algorithm": same_run.ALGORITHM,
+        "algorithm_options": json.dumps(same_run.OPTIONS),
+        "task": same_run.TASK,
+        "task_options": json.dumps(same_run.TASK_OPTIONS),
+        "seed": same_run.SEED,
+        "budget": same_run.BUDGET,
+        "noise_fraction": same_run.NOISE,
     }
 
 
@@ -100,20 +90,23 @@ def from_four_processes(tmp_path: Path) -> dict[str, Any]:
             proc.send_signal(signal.SIGINT)
         for proc in helpers:
             proc.wait(30)
-    return from_bag(bag)
+    return same_run.from_bag(bag)
 
 
 @pytest.mark.slow
 def test_bench_run_and_four_processes_give_the_same_run(tmp_path: Path) -> None:
-    reference = from_bench(tmp_path)
-    assert len(reference["native"]) == BUDGET
-    assert len(reference["answers"]) >= BUDGET - 1
+    reference = same_run.from_bench(tmp_path)
+    assert len(reference["native"]) == same_run.BUDGET
+    assert len(reference["answers"]) >= same_run.BUDGET - 1
     assert {kind for _, _, kind, _ in reference["answers"].values()} == {"decisive"}
 
     one_process = tmp_path / "one.mcap"
     summary = run_suite(node_parameters(), one_process, timeout_s=300)
     assert summary.state == "done", summary.error
-    paths = {"localpbo run": from_bag(one_process), "four processes": from_four_processes(tmp_path)}
+    paths = {
+        "localpbo run": same_run.from_bag(one_process),
+        "four processes": from_four_processes(tmp_path),
+    }
 
     for name, got in paths.items():
         # floats compared exactly: bit-identical, not approximately equal

@@ -52,22 +52,15 @@ def test_paths_deterministic_and_differentiable(duels):
 
 def _reference_draw_sample_paths(surrogate, num_paths, generator, num_features):
     """The pathwise formula of :mod:`localpbo_core.surrogate.sampling` written directly in
-    torch, without the numpy fast route (the reference)."""
-    import math
-
+    torch, without the numpy fast route (the reference); the random draws are the module's
+    own (:func:`~localpbo_core.surrogate.sampling.path_draws`)."""
     from localpbo_core.surrogate.kernel import se_kernel
+    from localpbo_core.surrogate.sampling import path_draws
 
-    dt = torch.float64
     X = surrogate.train_inputs
-    p, d = X.shape
     ls = surrogate.lengthscale
     os_ = surrogate.outputscale
-    S, F = int(num_paths), int(num_features)
-    omega = torch.randn(S, F, d, generator=generator, dtype=dt) / ls
-    phase = 2.0 * math.pi * torch.rand(S, F, generator=generator, dtype=dt)
-    weights = torch.randn(S, F, generator=generator, dtype=dt)
-    xi = torch.randn(p, S, generator=generator, dtype=dt)
-    amp = math.sqrt(2.0 * os_ / F)
+    omega, phase, weights, xi, amp = path_draws(surrogate, num_paths, generator, num_features)
 
     def prior(x):
         feats = amp * torch.cos(torch.einsum("nd,sfd->nsf", x, omega) + phase)

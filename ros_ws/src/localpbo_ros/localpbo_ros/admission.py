@@ -30,15 +30,7 @@ from localpbo_msgs_py import (
     Incumbent,
     RunConfig,
     Status,
-)
-from localpbo_msgs_py.topics import (
-    CANDIDATE,
-    DUEL_OUTCOME,
-    DUEL_REQUEST,
-    EPISODE_RESULT,
-    INCUMBENT,
-    RUN_CONFIG,
-    STATUS,
+    topics,
 )
 from localpbo_ros.base import NO_RUN
 
@@ -120,9 +112,9 @@ class RunFilter:
 
     def classify(self, topic: str, msg: object) -> str | None:
         """None for a message of the run on ``topic``; else why it is foreign."""
-        if topic == RUN_CONFIG.name:
+        if topic == topics.RUN_CONFIG.name:
             return self._config(msg)
-        if topic == STATUS.name:
+        if topic == topics.STATUS.name:
             status = Status.decode(msg)
             if isinstance(status, DecodeError):
                 return status.reason.value
@@ -135,7 +127,7 @@ class RunFilter:
         if config is None:
             return BEFORE_RUN
         run = config.run_id
-        if topic == CANDIDATE.name:
+        if topic == topics.CANDIDATE.name:
             cand = CandidateMsg.decode(
                 msg,
                 expected_run_id=run,
@@ -144,14 +136,14 @@ class RunFilter:
                 upper=config.upper,
             )
             return cand.reason.value if isinstance(cand, DecodeError) else self._candidates(cand)
-        if topic == INCUMBENT.name:
+        if topic == topics.INCUMBENT.name:
             inc = Incumbent.decode(msg, expected_run_id=run, expected_dim=config.dim)
             return inc.reason.value if isinstance(inc, DecodeError) else self._candidates(inc)
-        if topic == EPISODE_RESULT.name:
+        if topic == topics.EPISODE_RESULT.name:
             res = EpisodeResult.decode(msg, expected_run_id=run)
             return res.reason.value if isinstance(res, DecodeError) else self._candidates(res)
-        if topic in (DUEL_REQUEST.name, DUEL_OUTCOME.name):
-            decoder = DuelRequest if topic == DUEL_REQUEST.name else DuelOutcome
+        if topic in (topics.DUEL_REQUEST.name, topics.DUEL_OUTCOME.name):
+            decoder = DuelRequest if topic == topics.DUEL_REQUEST.name else DuelOutcome
             duel = decoder.decode(msg, expected_run_id=run)
             if isinstance(duel, DecodeError):
                 return duel.reason.value

@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from typing import Any, Unpack
+from typing import Any, TypeVar, Unpack
 
 from localpbo_msgs_py import CandidateMsg, DecodeError, DuelRequest, EpisodeResult, RunConfig
 from localpbo_msgs_py.topics import RUN_CONFIG
 from localpbo_ros.admission import OUT_OF_RANGE, IdRange, id_range
 from localpbo_ros.base import NodeOptions, SuiteNode
 from localpbo_ros.params import Param
+
+Decoded = TypeVar("Decoded")
 
 FOLLOWER_PARAMS = [
     Param(
@@ -106,6 +108,18 @@ class FollowerNode(SuiteNode, abc.ABC):
         else:
             self._early.append((handler, msg))
         return True
+
+    def admitted(
+        self,
+        handler: Callable[[Any], None],
+        decode: Callable[[object], Decoded | None],
+        msg: object,
+    ) -> Decoded | None:
+        """``decode(msg)`` (e.g. :meth:`result`) once the run config is known; None while
+        ``msg`` is held for ``handler`` (:meth:`hold`) or when ``decode`` dropped it."""
+        if self.hold(handler, msg):
+            return None
+        return decode(msg)
 
     def candidate(self, msg: object) -> CandidateMsg | None:
         """Decode a candidate of the served run; None for a malformed one (dropped and counted

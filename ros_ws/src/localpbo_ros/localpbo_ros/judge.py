@@ -787,13 +787,21 @@ class JudgeCore:
 
     def answer(self, body: bytes) -> Reply:
         """Handle the body of ``POST api/answer`` (see module docstring)."""
+        return self._handle(self._answer, body)
+
+    def _handle(
+        self, handler: Callable[[bytes], tuple[Reply, DuelOutcome | None]], body: bytes
+    ) -> Reply:
+        """``handler``'s reply to ``body``, run under the lock: a refused request is dropped
+        and counted, an accepted one wakes the page's streams. The outcome it returns
+        (journaled and marked answered, or a retraction) is published outside the lock."""
         with self.lock:
-            reply, outcome = self._answer(body)
+            reply, outcome = handler(body)
             if reply.status >= 400:
                 self._drop(f"http_{reply.reason}", str(reply.body.get("detail", "")))
             else:
                 self._touch()
-        if outcome is not None:  # journaled and marked answered: published outside the lock
+        if outcome is not None:
             self._publish(outcome)
         return reply
 
@@ -930,15 +938,7 @@ class JudgeCore:
     def undo(self, body: bytes) -> Reply:
         """Handle the body of ``POST api/undo``: ``{"duel_id"}`` must name the latest
         recorded answer (see module docstring)."""
-        with self.lock:
-            reply, retraction = self._undo(body)
-            if reply.status >= 400:
-                self._drop(f"http_{reply.reason}", str(reply.body.get("detail", "")))
-            else:
-                self._touch()
-        if retraction is not None:
-            self._publish(retraction)
-        return reply
+        return self._handle(self._undo, body)
 
     def _undo(self, body: bytes) -> tuple[Reply, DuelOutcome | None]:
         obj = self._parse(body)

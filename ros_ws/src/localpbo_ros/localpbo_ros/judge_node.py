@@ -42,15 +42,7 @@ from localpbo_msgs_py import (
     Incumbent,
     RunConfig,
     Status,
-)
-from localpbo_msgs_py.topics import (
-    CANDIDATE,
-    DUEL_OUTCOME,
-    DUEL_REQUEST,
-    EPISODE_RESULT,
-    INCUMBENT,
-    SPECULATIVE_CANDIDATE,
-    STATUS,
+    topics,
 )
 from localpbo_ros.base import NodeOptions
 from localpbo_ros.driver import problem_of
@@ -137,7 +129,7 @@ class JudgeNode(FollowerNode):
         url_file = self.settings["url_file"]
         self.url_file = Path(os.path.expanduser(url_file)) if url_file else self.state_dir / "url"
         self.url = ""
-        self._pub = self.publisher(DUEL_OUTCOME)
+        self._pub = self.publisher(topics.DUEL_OUTCOME)
         self.core = JudgeCore(
             lambda outcome: self._pub.publish(outcome.encode()),
             self.drop,
@@ -159,18 +151,18 @@ class JudgeNode(FollowerNode):
         except OSError as exc:
             port = self.settings["port"]
             raise ParameterError("port", f"cannot serve on {host}:{port}: {exc}") from None
-        self.subscribe(CANDIDATE, self._on_candidate)
-        self.subscribe(EPISODE_RESULT, self._on_result)
-        self.subscribe(DUEL_REQUEST, self._on_request)
-        self.subscribe(INCUMBENT, self._on_incumbent)
-        self.subscribe(STATUS, self._on_status)
+        self.subscribe(topics.CANDIDATE, self._on_candidate)
+        self.subscribe(topics.EPISODE_RESULT, self._on_result)
+        self.subscribe(topics.DUEL_REQUEST, self._on_request)
+        self.subscribe(topics.INCUMBENT, self._on_incumbent)
+        self.subscribe(topics.STATUS, self._on_status)
         # episodes a speculating optimizer may ask next: replayed ahead in one worker thread
         self._ahead: queue.Queue[tuple[int, tuple[float, ...]] | None] = queue.Queue(AHEAD_QUEUE)
         self._ahead_thread = threading.Thread(
             target=self._replay_ahead, name="judge-rollouts-ahead", daemon=True
         )
         self._ahead_thread.start()
-        self.subscribe(SPECULATIVE_CANDIDATE, self._on_speculative)
+        self.subscribe(topics.SPECULATIVE_CANDIDATE, self._on_speculative)
 
     # ------------------------------------------------------------------ plumbing
     def drop(self, reason: str, detail: str) -> None:
@@ -295,25 +287,19 @@ class JudgeNode(FollowerNode):
 
     # ------------------------------------------------------------------ callbacks
     def _on_candidate(self, msg: object) -> None:
-        if self.hold(self._on_candidate, msg):
-            return
-        cand = self.candidate(msg)
+        cand = self.admitted(self._on_candidate, self.candidate, msg)
         if cand is not None:
             self.core.on_candidate(cand)
 
     def _on_result(self, msg: object) -> None:
-        if self.hold(self._on_result, msg):
-            return
-        res = self.result(msg)  # of this run, for a candidate id in its range
+        res = self.admitted(self._on_result, self.result, msg)  # a candidate id in range
         if res is None:
             return
         for outcome in self.core.on_result(res):
             self._pub.publish(outcome.encode())
 
     def _on_request(self, msg: object) -> None:
-        if self.hold(self._on_request, msg):
-            return
-        req = self.request(msg)  # of this run, ids in its range
+        req = self.admitted(self._on_request, self.request, msg)  # ids in the run's range
         if req is None:
             return
         stored = self.core.on_request(req)

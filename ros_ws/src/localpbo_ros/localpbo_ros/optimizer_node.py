@@ -76,18 +76,9 @@ from localpbo_msgs_py import (
     EpisodeStatus,
     RunConfig,
     Status,
+    topics,
 )
 from localpbo_msgs_py.records import OutcomeKind
-from localpbo_msgs_py.topics import (
-    CANDIDATE,
-    DUEL_OUTCOME,
-    DUEL_REQUEST,
-    EPISODE_RESULT,
-    INCUMBENT,
-    RUN_CONFIG,
-    SPECULATIVE_CANDIDATE,
-    STATUS,
-)
 from localpbo_ros.base import NodeOptions, SuiteNode
 from localpbo_ros.completeness import Published
 from localpbo_ros.driver import (
@@ -364,15 +355,15 @@ class OptimizerNode(SuiteNode):
         self.started_at = 0.0
         self.finished_at = 0.0
         self.cpu_seconds = 0.0  # process CPU time from start to finish (benchmark)
-        self._pub_config = self.publisher(RUN_CONFIG)
-        self._pub_candidate = self.publisher(CANDIDATE)
-        self._pub_request = self.publisher(DUEL_REQUEST)
-        self._pub_incumbent = self.publisher(INCUMBENT)
-        self._pub_ahead = self.publisher(SPECULATIVE_CANDIDATE)
+        self._pub_config = self.publisher(topics.RUN_CONFIG)
+        self._pub_candidate = self.publisher(topics.CANDIDATE)
+        self._pub_request = self.publisher(topics.DUEL_REQUEST)
+        self._pub_incumbent = self.publisher(topics.INCUMBENT)
+        self._pub_ahead = self.publisher(topics.SPECULATIVE_CANDIDATE)
         self.pool = WorkerPool(self.settings["worker_timeout_s"], self.settings["worker_queue"])
-        self.subscribe(DUEL_OUTCOME, self._on_outcome)
-        self.subscribe(STATUS, self._on_status)
-        self.subscribe(EPISODE_RESULT, self._on_result)
+        self.subscribe(topics.DUEL_OUTCOME, self._on_outcome)
+        self.subscribe(topics.STATUS, self._on_status)
+        self.subscribe(topics.EPISODE_RESULT, self._on_result)
         self._pub_config.publish(self.config.encode())
         self.state = "waiting"
         self._timer = self.create_timer(TICK_S, self._tick)
@@ -428,8 +419,8 @@ class OptimizerNode(SuiteNode):
             return
         need = self.settings["min_subscribers"]
         text = (
-            f"waiting to start: {CANDIDATE.name} has {candidates} of {need} subscribers, "
-            f"{DUEL_REQUEST.name} {requests} of {need} (min_subscribers)"
+            f"waiting to start: {topics.CANDIDATE.name} has {candidates} of {need} subscribers, "
+            f"{topics.DUEL_REQUEST.name} {requests} of {need} (min_subscribers)"
         )
         if self.settings["min_workers"]:
             text += (

@@ -86,9 +86,7 @@ class OracleNode(FollowerNode):
 
     # ------------------------------------------------------------------ callbacks
     def _on_result(self, msg: object) -> None:
-        if self.hold(self._on_result, msg):
-            return
-        res = self.result(msg)
+        res = self.admitted(self._on_result, self.result, msg)
         if res is None:
             return
         known = self._results.get(res.candidate_id)
@@ -110,9 +108,7 @@ class OracleNode(FollowerNode):
         self._resolve_waiting()
 
     def _on_request(self, msg: object) -> None:
-        if self.hold(self._on_request, msg):
-            return
-        req = self.request(msg)
+        req = self.admitted(self._on_request, self.request, msg)
         if req is None:
             return
         done = self._answered.get(req.duel_id)

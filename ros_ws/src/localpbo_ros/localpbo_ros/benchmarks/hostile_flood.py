@@ -26,15 +26,7 @@ from typing import Any
 import numpy as np
 
 from localpbo_core.settings import RunSettings
-from localpbo_msgs_py import CandidateMsg, DuelRequest, EpisodeResult, RunConfig, Status
-from localpbo_msgs_py.topics import (
-    CANDIDATE,
-    DUEL_REQUEST,
-    EPISODE_RESULT,
-    RUN_CONFIG,
-    STATUS,
-    TopicSpec,
-)
+from localpbo_msgs_py import CandidateMsg, DuelRequest, EpisodeResult, RunConfig, Status, topics
 from localpbo_ros.admission import RunFilter
 from localpbo_ros.driver import make_run_config
 
@@ -50,7 +42,7 @@ def rss_mb() -> float:
     return float("nan")
 
 
-def forged(rng: np.random.Generator, config: RunConfig, i: int) -> tuple[TopicSpec, Any]:
+def forged(rng: np.random.Generator, config: RunConfig, i: int) -> tuple[topics.TopicSpec, Any]:
     """The ``i``-th forged message: kinds in turn, ids up to 10**7 (a tenth in range)."""
     top = 2 * config.budget if rng.random() < 0.1 else 10**7
     a, b = (int(v) for v in rng.integers(0, top, size=2))
@@ -58,10 +50,10 @@ def forged(rng: np.random.Generator, config: RunConfig, i: int) -> tuple[TopicSp
     theta = tuple(float(v) for v in rng.uniform(config.lower, config.upper))
     kind = i % 3
     if kind == 0:
-        return CANDIDATE, CandidateMsg(RUN, a, theta).encode()
+        return topics.CANDIDATE, CandidateMsg(RUN, a, theta).encode()
     if kind == 1:
-        return EPISODE_RESULT, EpisodeResult.ok(RUN, a, float(rng.normal())).encode()
-    return DUEL_REQUEST, DuelRequest(RUN, int(rng.integers(0, top)), a, b).encode()
+        return topics.EPISODE_RESULT, EpisodeResult.ok(RUN, a, float(rng.normal())).encode()
+    return topics.DUEL_REQUEST, DuelRequest(RUN, int(rng.integers(0, top)), a, b).encode()
 
 
 def triage_cost(config: RunConfig) -> None:
@@ -69,13 +61,16 @@ def triage_cost(config: RunConfig) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
 
     triage = RunFilter()
-    triage.classify(RUN_CONFIG.name, config.encode())
+    triage.classify(topics.RUN_CONFIG.name, config.encode())
     kinds: dict[str, tuple[Any, Any]] = {
-        "candidate, id out of range": (CANDIDATE, CandidateMsg(RUN, 10**7, config.lower)),
-        "episode result, id out of range": (EPISODE_RESULT, EpisodeResult.ok(RUN, 10**7, 1.0)),
-        "duel request, id out of range": (DUEL_REQUEST, DuelRequest(RUN, 10**7, 0, 1)),
-        "duel request, another run": (DUEL_REQUEST, DuelRequest("other", 3, 0, 1)),
-        "status, another run": (STATUS, Status("other", "intruder", "running")),
+        "candidate, id out of range": (topics.CANDIDATE, CandidateMsg(RUN, 10**7, config.lower)),
+        "episode result, id out of range": (
+            topics.EPISODE_RESULT,
+            EpisodeResult.ok(RUN, 10**7, 1.0),
+        ),
+        "duel request, id out of range": (topics.DUEL_REQUEST, DuelRequest(RUN, 10**7, 0, 1)),
+        "duel request, another run": (topics.DUEL_REQUEST, DuelRequest("other", 3, 0, 1)),
+        "status, another run": (topics.STATUS, Status("other", "intruder", "running")),
     }
     print("recorder triage (deserialize + decode + range), one core:")
     for name, (spec, value) in kinds.items():
@@ -117,12 +112,12 @@ def flood(config: RunConfig, messages: int, seed: int) -> None:
         executor.add_node(each)
     pubs = {
         s.name: probe.create_publisher(s.msg_type, s.name, s.qos)
-        for s in (RUN_CONFIG, CANDIDATE, EPISODE_RESULT, DUEL_REQUEST)
+        for s in (topics.RUN_CONFIG, topics.CANDIDATE, topics.EPISODE_RESULT, topics.DUEL_REQUEST)
     }
     end = time.monotonic() + 5
     while time.monotonic() < end and not all(p.get_subscription_count() for p in pubs.values()):
         executor.spin_once(timeout_sec=0.01)
-    pubs[RUN_CONFIG.name].publish(config.encode())
+    pubs[topics.RUN_CONFIG.name].publish(config.encode())
     while sim.run_id != RUN or oracle.run_id != RUN:
         executor.spin_once(timeout_sec=0.01)
 
