@@ -64,12 +64,19 @@ ALGORITHM_MODULES: dict[str, tuple[str, ...]] = {
     "gipbo": ("gipbo.py", "gi_acquisition.py", "local_phase.py"),
     "gipbor": ("gipbo.py", "gi_acquisition.py", "local_phase.py"),
     "prefsqp": ("prefsqp.py", "local_phase.py", "acquisition.py"),
-    "turpbo": ("turpbo.py", "trust_region.py", "acquisition.py"),
-    "qeubo": ("qeubo.py", "acquisition.py"),
+    "turpbo": ("turpbo.py", "gp_acquisition.py", "trust_region.py", "acquisition.py"),
+    "qeubo": ("qeubo.py", "gp_acquisition.py", "acquisition.py"),
     "hbei": ("hbei.py", "acquisition.py"),
     "glisp": ("glisp.py",),
     "sobol": ("sobol.py",),
-    "hybrid": ("hybrid.py", "turpbo.py", "trust_region.py", "acquisition.py", "prefsqp.py"),
+    "hybrid": (
+        "hybrid.py",
+        "turpbo.py",
+        "gp_acquisition.py",
+        "trust_region.py",
+        "acquisition.py",
+        "prefsqp.py",
+    ),
 }
 """Each algorithm's own modules under ``localpbo_core/optimizers``."""
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from localpbo_core.experiments.drift import compare, table
 from localpbo_core.provenance import code_block
 
@@ -99,3 +101,21 @@ def test_equivalent_code_records_name_committed_runs() -> None:
         assert entry["candidates"] == len(doc["candidates"])
         assert 0 <= entry["identical"] <= entry["candidates"]
         assert 0 <= entry["stored_identical"] <= entry["candidates"]
+
+
+def test_every_optimizer_module_belongs_to_an_algorithm_digest() -> None:
+    """A module of ``localpbo_core/optimizers`` that no algorithm's digest covers could change
+    stored runs unnoticed: each is shared by all or listed for an algorithm."""
+    from localpbo_core.provenance import (
+        ALGORITHM_MODULES,
+        ROOT,
+        SHARED_ALGORITHM_SOURCES,
+    )
+
+    folder = ROOT / "localpbo_core" / "optimizers"
+    covered = {m for modules in ALGORITHM_MODULES.values() for m in modules}
+    covered |= {
+        Path(s).name for s in SHARED_ALGORITHM_SOURCES if s.startswith("localpbo_core/optimizers/")
+    }
+    missing = sorted(p.name for p in folder.glob("*.py") if p.name not in covered | {"__init__.py"})
+    assert missing == []
