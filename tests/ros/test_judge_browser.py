@@ -177,7 +177,7 @@ def test_whole_run_answered_in_the_browser(browser: Any, tmp_path: Path) -> None
 
     try:  # long: the first torch import (the run's recommendation) can take 30 s under load
         until(lambda: "thank you" in browser.find_element("id", "phase").text.lower(), 90)
-    except AssertionError:
+    except TimeoutError:
         shown = browser.execute_script("return [$('phase').textContent, JSON.stringify(state)]")
         run.thread.join(90)
         ended = run.result.get("summary") or run.result.get("error")
@@ -477,7 +477,7 @@ def test_undo_in_the_browser_rebuilt_by_verify(browser: Any, tmp_path: Path) -> 
     while "thank you" not in browser.find_element("id", "phase").text.lower():
         try:
             duel = duel_shown(browser)
-        except AssertionError:
+        except TimeoutError:
             break
         press(browser, "a")
         reply_text(browser, f"Recorded: duel {duel}")
@@ -553,7 +553,7 @@ def test_resume_keeps_the_person_and_the_open_tab(browser: Any, tmp_path: Path) 
         while True:
             try:
                 duel = duel_shown(browser)
-            except AssertionError:
+            except TimeoutError:
                 break
             assert browser.execute_script("return window.sameTab") == 42  # never reloaded
             press(browser, "b")
