@@ -313,9 +313,13 @@ def _main_why(paths: Sequence[str], record: str | None, commit: str | None) -> i
     if record is not None:
         target = Path(record)
         old = json.loads(target.read_text()) if target.is_file() else []
-        names = {e["run"] + e["to"] for e in entries}
-        kept = [e for e in old if e["run"] + e["to"] not in names]
-        merged = sorted(kept + entries, key=lambda e: (e["algorithm"], e["run"], e["to"]))
+
+        def key(e: dict[str, Any]) -> tuple[str, str, str]:
+            return e["run"], e["from"], e["to"]
+
+        names = {key(e) for e in entries}
+        kept = [e for e in old if key(e) not in names]
+        merged = sorted(kept + entries, key=lambda e: (e["algorithm"], *key(e)))
         target.write_text(json.dumps(merged, indent=1, sort_keys=True) + "\n")
     return 0
 
