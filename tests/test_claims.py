@@ -5,46 +5,11 @@ significant)."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from localpbo_core.experiments.claims import CLAIMS, Outcome, claims_table, groups_of
 from localpbo_core.report import StoredRun
-
-
-def _run(
-    spec: str,
-    problem: str,
-    algorithm: str,
-    seed: int,
-    best: float,
-    cum: float,
-    seconds: float = 1.0,
-) -> StoredRun:
-    options: dict[str, object] = {}
-    name = problem
-    if problem.startswith("gp"):
-        dim, ls = problem[2:].split("_l")
-        options = {"dim": int(dim), "lengthscale": float(ls), "instance": seed}
-        name = "gp_sample"
-    return StoredRun(
-        spec=spec,
-        problem_label=problem,
-        algorithm_label=algorithm,
-        variant="",
-        seed=seed,
-        within_model=spec == "gp_within",
-        settings={
-            "problem": name,
-            "algorithm": algorithm,
-            "problem_options": options,
-            "optimizer_options": {},
-            "budget": None,
-        },
-        best_seen=np.array([best - 1.0, best]),
-        cumulative=np.array([cum / 2, cum]),
-        optimizer_seconds=seconds,
-    )
+from tests.fabricated import stored_run as _run
 
 
 def _group(spec: str, problem: str, means: dict[str, tuple[float, ...]]) -> list[StoredRun]:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from localpbo_core.experiments.diagnose import diagnose, diagnose_run, main, table
+from tests.fabricated import run_document
 
 
 @dataclass(frozen=True)
@@ -34,20 +35,7 @@ def _doc() -> dict:
         {"duel_id": 3, "first": 3, "second": 1, "kind": "decisive", "winner": 1},  # lost
         {"duel_id": 4, "first": 4, "second": 1, "kind": "decisive", "winner": 4},  # won
     ]
-    return {
-        "settings": {
-            "problem": "box",
-            "algorithm": "turpbo",
-            "seed": 3,
-            "initial_design": 2,
-            "noise_fraction": 0.1,
-        },
-        "candidates": [
-            {"id": i, "native": n, "value": v}
-            for i, (n, v) in enumerate(zip(natives, values, strict=True))
-        ],
-        "answers": answers,
-    }
+    return run_document("turpbo", 3, natives, values, answers)
 
 
 def test_counts_match_a_hand_count() -> None:

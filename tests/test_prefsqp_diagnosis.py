@@ -25,6 +25,7 @@ from localpbo_core.experiments.prefsqp_diagnosis import (
     true_gradient,
 )
 from localpbo_core.sweep import write_run
+from tests.fabricated import run_document
 
 
 @dataclass(frozen=True)
@@ -71,21 +72,7 @@ def _doc() -> dict:
         _duel(4, 6, 5, 5),
         _duel(5, 8, 7, 7),  # flipped: 1.5 < 1.7
     ]
-    return {
-        "schema": "localpbo/run/v1",
-        "settings": {
-            "problem": "box",
-            "algorithm": "gipbo",
-            "seed": 0,
-            "initial_design": 2,
-            "noise_fraction": 0.1,
-        },
-        "candidates": [
-            {"id": i, "native": n, "value": v}
-            for i, (n, v) in enumerate(zip(natives, values, strict=True))
-        ],
-        "answers": answers,
-    }
+    return run_document("gipbo", 0, natives, values, answers)
 
 
 def test_moves_and_steps_match_a_hand_count() -> None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 from localpbo_core.experiments.beyond import (
@@ -30,51 +29,10 @@ from localpbo_core.experiments.beyond import (
 )
 from localpbo_core.report import StoredRun
 from localpbo_core.settings import DEFAULT_ALGORITHM
+from tests.fabricated import stored_run as _run
 
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = range(10)
-
-
-def _run(
-    spec: str,
-    problem: str,
-    label: str,
-    seed: int,
-    best: float,
-    cum: float,
-    seconds: float = 1.0,
-    *,
-    algorithm: str = "",
-    variant: str = "",
-    noise: float = 0.1,
-) -> StoredRun:
-    options: dict[str, object] = {}
-    name = problem
-    if problem.startswith("gp"):
-        dim, ls = problem[2:].split("_l")
-        options = {"dim": int(dim), "lengthscale": float(ls), "instance": seed}
-        name = "gp_sample"
-    return StoredRun(
-        spec=spec,
-        problem_label=problem,
-        algorithm_label=label,
-        variant=variant,
-        seed=seed,
-        within_model=spec.endswith("gp_within"),
-        settings={
-            "problem": name,
-            "algorithm": algorithm or label,
-            "seed": seed,
-            "problem_options": options,
-            "optimizer_options": {},
-            "budget": None,
-            "initial_design": 2,
-            "noise_fraction": noise,
-        },
-        best_seen=np.array([best - 1.0, best]),
-        cumulative=np.array([cum / 2, cum]),
-        optimizer_seconds=seconds,
-    )
 
 
 def _beyond(spec: str) -> str:
