@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from localpbo_core.experiments.drift import compare, table
 from localpbo_core.provenance import code_block
 
@@ -59,6 +61,15 @@ def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
     runs = stored_by_commit(table)
     assert len(runs) >= 2000
     doc = json.loads(table.read_text())
+    shallow = subprocess.run(
+        ["git", "-C", str(ROOT), "rev-parse", "--is-shallow-repository"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    if shallow == "true":
+        assert all(path.is_file() for path in runs)
+        pytest.skip("a shallow clone holds too little history to check the storing commits")
     for i, (path, (commit, _digests)) in enumerate(sorted(runs.items())):
         assert path.is_file(), path
         if i % 250:
