@@ -199,15 +199,16 @@ def same_behaviour(algorithm: str, digest: str, pairs: dict[str, set[tuple[str, 
     """True if a chain of equivalent pairs leads from ``digest`` to today's
     ``algorithm_digest`` of ``algorithm``."""
     today = code_block(algorithm)["algorithm_digest"]
-    edges = pairs.get(algorithm, set())
+    neighbours: dict[str, set[str]] = {}
+    for a, b in pairs.get(algorithm, set()):
+        neighbours.setdefault(a, set()).add(b)
+        neighbours.setdefault(b, set()).add(a)
     seen, frontier = {digest}, [digest]
     while frontier:
         node = frontier.pop()
         if node == today:
             return True
-        for a, b in edges:
-            for nxt in ((b,) if a == node else ()) + ((a,) if b == node else ()):
-                if nxt not in seen:
-                    seen.add(nxt)
-                    frontier.append(nxt)
+        fresh = neighbours.get(node, set()) - seen
+        seen |= fresh
+        frontier.extend(sorted(fresh))
     return False
