@@ -28,7 +28,7 @@ package's README)."""
 
 
 def test_a_flooded_run_completes_with_its_whole_record(tmp_path: Path, capsys) -> None:
-    env = host_env(73)
+    env = host_env(80)
     bag = tmp_path / "flooded.mcap"
     helpers = [
         start_node(env, "recorder_node", "-p", f"path:={bag}", "-p", "max_foreign_bytes:=2000000"),

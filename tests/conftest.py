@@ -1,0 +1,65 @@
+"""Which tests may run side by side under ``pytest -n 2 --dist loadgroup`` (``make test``).
+
+Tests that start node processes share fixed ROS domain ids and look at the processes and
+sockets of this host; tests that start Ray share its session folder and ports. Each of those
+kinds runs in one xdist group (one worker, one test at a time); every other test runs on
+whichever worker is free. Without xdist (plain ``pytest``) the groups change nothing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+TESTS = Path(__file__).resolve().parent
+
+PROCESS_TESTS = tuple(
+    f"ros/test_{name}.py"
+    for name in (
+        "bag_refusals",
+        "bridge_exact",
+        "bridge_pool",
+        "bridge_processes",
+        "colcon",
+        "dds_scope",
+        "episode_process",
+        "hostile_processes",
+        "judge_browser",
+        "judge_resume",
+        "multiprocess",
+        "node_conventions",
+        "params",
+        "paths",
+        "pool_processes",
+        "resume",
+        "signals",
+    )
+)
+"""The ROS tests that start node processes or a browser (the others keep their nodes in the
+test's process with discovery off, ``tests/ros/conftest.py``, and run beside anything)."""
+
+GROUPS: dict[str, tuple[str, ...]] = {
+    # node processes on ROS domains 64-74 (and the load they put on both cores)
+    "ros-stops": ("ros/test_run_stops.py",),
+    # node processes on the other fixed domains, the judge page in a browser, documented
+    # commands, entry points
+    "ros": (*PROCESS_TESTS, "test_entry_points.py", "test_docs_commands.py", "test_no_ros.py"),
+    # an embedded or started Ray cluster
+    "ray": ("test_sweep.py", "test_sweep_cluster.py"),
+}
+"""xdist group name -> test files (relative to ``tests/``). Two groups may run at the same
+time, so the ROS domains of "ros-stops" are used by no other test."""
+
+
+def group_of(path: Path) -> str | None:
+    """The group of the test file ``path``, or None when it may run beside any other."""
+    relative = path.resolve().relative_to(TESTS).as_posix()
+    return next((name for name, files in GROUPS.items() if relative in files), None)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        name = group_of(item.path)
+        if name is not None:
+            item.add_marker(pytest.mark.xdist_group(name))
