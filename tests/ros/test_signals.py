@@ -52,9 +52,7 @@ def _running(cmd: list[str], bag: Path | None, **extra_env: str) -> Iterator[sub
 @pytest.mark.parametrize(
     ("module", "second", "gap_s"),
     [
-        ("recorder_node", signal.SIGINT, 0.0),
-        ("recorder_node", signal.SIGINT, 0.03),
-        ("recorder_node", signal.SIGINT, 0.1),
+        *[("recorder_node", signal.SIGINT, gap_s) for gap_s in (0.0, 0.03, 0.1)],
         ("recorder_node", signal.SIGTERM, 0.05),
         ("sim_node", signal.SIGINT, 0.05),
     ],
