@@ -46,20 +46,15 @@ from localpbo_core.experiments.paper import (
     paper_seconds,
     problem_key,
 )
+from localpbo_core.experiments.spec import RunLabels
 from localpbo_core.run_documents import run_files
 from localpbo_core.settings import SettingError
 
 
 @dataclass(frozen=True)
-class StoredRun:
+class StoredRun(RunLabels):
     """The parts of a stored run the report uses."""
 
-    spec: str
-    problem_label: str
-    algorithm_label: str
-    variant: str
-    seed: int
-    within_model: bool
     settings: dict[str, Any]
     best_seen: np.ndarray
     cumulative: np.ndarray

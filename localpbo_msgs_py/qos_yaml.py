@@ -11,7 +11,8 @@ infinite, ``RMW_DURATION_INFINITE`` = ``{sec: 9223372036, nsec: 854775807}``.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from enum import Enum
+from typing import Any, TypeVar
 
 import yaml
 from rclpy.duration import Duration
@@ -25,24 +26,19 @@ from rclpy.qos import (
 
 INFINITE = {"sec": 9223372036, "nsec": 854775807}
 
-_HISTORY = {
-    HistoryPolicy.KEEP_LAST: "keep_last",
-    HistoryPolicy.KEEP_ALL: "keep_all",
-    HistoryPolicy.SYSTEM_DEFAULT: "system_default",
-}
-_RELIABILITY = {
-    ReliabilityPolicy.RELIABLE: "reliable",
-    ReliabilityPolicy.BEST_EFFORT: "best_effort",
-    ReliabilityPolicy.SYSTEM_DEFAULT: "system_default",
-}
-_DURABILITY = {
-    DurabilityPolicy.VOLATILE: "volatile",
-    DurabilityPolicy.TRANSIENT_LOCAL: "transient_local",
-    DurabilityPolicy.SYSTEM_DEFAULT: "system_default",
-}
+_Policy = TypeVar("_Policy", bound=Enum)
+
+
+def _rmw_names(policy: type[_Policy], *names: str) -> dict[_Policy, str]:
+    """Each of ``names`` (rmw strings) by the member of ``policy`` it names in upper case."""
+    return {policy[name.upper()]: name for name in names}
+
+
+_HISTORY = _rmw_names(HistoryPolicy, "keep_last", "keep_all", "system_default")
+_RELIABILITY = _rmw_names(ReliabilityPolicy, "reliable", "best_effort", "system_default")
+_DURABILITY = _rmw_names(DurabilityPolicy, "volatile", "transient_local", "system_default")
 _LIVELINESS = {
-    LivelinessPolicy.AUTOMATIC: "automatic",
-    LivelinessPolicy.MANUAL_BY_TOPIC: "manual_by_topic",
+    **_rmw_names(LivelinessPolicy, "automatic", "manual_by_topic"),
     # SYSTEM_DEFAULT is what Fast DDS offers as automatic
     LivelinessPolicy.SYSTEM_DEFAULT: "automatic",
 }

@@ -492,8 +492,9 @@ def _feasible(groups: Sequence[Group]) -> Outcome:
 
 
 # ---------------------------------------------------------------------- Sec. 6, policy search
-def _policy(groups: Sequence[Group], spec: str) -> list[Group]:
-    return [g for g in (_find(groups, spec, t) for t in _POLICY_DIMS) if g]
+def _policy(groups: Sequence[Group], spec: str, *having: str) -> list[Group]:
+    """The groups of ``spec``'s policy tasks, those on which every one of ``having`` ran."""
+    return [g for g in (_find(groups, spec, t) for t in _POLICY_DIMS) if g and g.has(*having)]
 
 
 _PAPER_POLICY_ALGORITHMS = {
@@ -509,7 +510,7 @@ def _missing_policy(g: Group) -> str:
 
 
 def _turpbo_best_policy(groups: Sequence[Group]) -> Outcome:
-    tasks = [g for g in _policy(groups, "policy_warm_start") if g.has("turpbo")]
+    tasks = _policy(groups, "policy_warm_start", "turpbo")
     if not tasks:
         return Outcome("policy search with warm start not run", "not run")
     parts, ok = [], 0
@@ -571,26 +572,31 @@ def _no_warm_start_pairs(groups: Sequence[Group]) -> list[tuple[Group, Group]]:
     return pairs
 
 
-def _local_less_reliable_cold(groups: Sequence[Group]) -> Outcome:
-    pairs = _no_warm_start_pairs(groups)
-    if not pairs:
+def _cold_tally(judged: Sequence[tuple[int, int, str]]) -> Outcome:
+    """The outcome of a claim on policy search without warm start from each task's (holds, out
+    of, note): the notes joined, the counts summed into the verdict."""
+    if not judged:
         return Outcome("policy search without warm start not run", "not run")
-    parts, ok, total = [], 0, 0
-    for warm, cold in pairs:
+    ok = sum(holds for holds, _, _ in judged)
+    total = sum(out_of for _, out_of, _ in judged)
+    return Outcome("; ".join(note for _, _, note in judged), _verdict(ok, total))
+
+
+def _local_less_reliable_cold(groups: Sequence[Group]) -> Outcome:
+    judged = []
+    for warm, cold in _no_warm_start_pairs(groups):
         both = [a for a in LOCAL if a in warm.best and a in cold.best]
         lower = [a for a in both if cold.mean("best", a) < warm.mean("best", a)]
-        total += len(both)
-        ok += len(lower)
-        parts.append(f"{cold.problem}: lower without warm start {len(lower)} of {len(both)}")
-    return Outcome("; ".join(parts), _verdict(ok, total))
+        note = f"{cold.problem}: lower without warm start {len(lower)} of {len(both)}"
+        judged.append((len(lower), len(both), note))
+    return _cold_tally(judged)
 
 
 def _gradient_below_random_cold(groups: Sequence[Group]) -> Outcome:
-    pairs = [(w, c) for w, c in _no_warm_start_pairs(groups) if c.has("sobol")]
-    if not pairs:
-        return Outcome("policy search without warm start not run", "not run")
-    parts, ok, total = [], 0, 0
-    for warm, cold in pairs:
+    judged = []
+    for warm, cold in _no_warm_start_pairs(groups):
+        if not cold.has("sobol"):
+            continue
         both = [a for a in DERIVATIVE if a in warm.best and a in cold.best]
         worse = [
             a
@@ -598,46 +604,34 @@ def _gradient_below_random_cold(groups: Sequence[Group]) -> Outcome:
             if cold.mean("best", a) < warm.mean("best", a)
             and cold.mean("best", a) < cold.mean("best", "sobol")
         ]
-        total += len(both)
-        ok += len(worse)
-        parts.append(f"{cold.problem}: degraded and below Sobol {len(worse)} of {len(both)}")
-    return Outcome("; ".join(parts), _verdict(ok, total))
+        note = f"{cold.problem}: degraded and below Sobol {len(worse)} of {len(both)}"
+        judged.append((len(worse), len(both), note))
+    return _cold_tally(judged)
 
 
 def _gradient_cumulative_vs_glisp_cold(groups: Sequence[Group]) -> Outcome:
-    tasks = [g for g in _policy(groups, "policy_no_warm_start") if g.has("glisp")]
-    if not tasks:
-        return Outcome("policy search without warm start not run", "not run")
-    parts, ok, total = [], 0, 0
-    for g in tasks:
+    judged = []
+    for g in _policy(groups, "policy_no_warm_start", "glisp"):
         mine = [a for a in DERIVATIVE if a in g.best]
         good = [
             a
             for a in mine
             if g.not_below("cumulative", a, "glisp") and g.mean("best", "glisp") > g.mean("best", a)
         ]
-        total += len(mine)
-        ok += len(good)
-        parts.append(f"{g.problem}: {len(good)} of {len(mine)}")
-    return Outcome("; ".join(parts), _verdict(ok, total))
+        judged.append((len(good), len(mine), f"{g.problem}: {len(good)} of {len(mine)}"))
+    return _cold_tally(judged)
 
 
 def _turpbo_cold(groups: Sequence[Group]) -> Outcome:
-    tasks = [g for g in _policy(groups, "policy_no_warm_start") if g.has("turpbo")]
-    if not tasks:
-        return Outcome("policy search without warm start not run", "not run")
-    parts, ok, total = [], 0, 0
-    for g in tasks:
+    judged = []
+    for g in _policy(groups, "policy_no_warm_start", "turpbo"):
         _, tied = g.ranking("best")
-        total += 1
-        ok += tied["turpbo"]
-        parts.append(f"{g.problem}: {'tied with the best' if tied['turpbo'] else 'below'}")
+        note = f"{g.problem}: {'tied with the best' if tied['turpbo'] else 'below'}"
+        judged.append((tied["turpbo"], 1, note))
         if g.problem == "hopper" and g.has("sobol"):
-            total += 1
             not_better = g.not_below("best", "sobol", "turpbo")
-            ok += not_better
-            parts.append(f"hopper: {'not ' if not_better else ''}above Sobol")
-    return Outcome("; ".join(parts), _verdict(ok, total))
+            judged.append((not_better, 1, f"hopper: {'not ' if not_better else ''}above Sobol"))
+    return _cold_tally(judged)
 
 
 # ---------------------------------------------------------------------- App. D.4

@@ -91,8 +91,9 @@ _PER_DIM = re.compile(r"^\s*(\d+)\s*d\s*(?:\+\s*(\d+)\s*)?$")
 
 
 @dataclass(frozen=True)
-class PlannedRun:
-    """One run of a spec: its labels, seed and fully resolved settings."""
+class RunLabels:
+    """Which run of a spec a run is: the spec, its labels and seed, and whether its problem
+    is within model."""
 
     spec: str
     problem_label: str
@@ -100,6 +101,12 @@ class PlannedRun:
     variant: str
     seed: int
     within_model: bool
+
+
+@dataclass(frozen=True)
+class PlannedRun(RunLabels):
+    """One run of a spec: its labels, seed and fully resolved settings."""
+
     settings: RunSettings
 
     @property

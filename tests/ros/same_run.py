@@ -47,14 +47,8 @@ def from_bench(
         tie_threshold=tie_threshold,
         indifference=indifference,
     )
-    settings = RunSettings(
-        algorithm=ALGORITHM,
-        problem=TASK,
-        seed=SEED,
-        tie_threshold=tie_threshold,
-        indifference=indifference,
-    )
-    doc = json.loads((out / "runs" / run_file_name(settings)).read_text())
+    name = run_file_name(RunSettings(algorithm=ALGORITHM, problem=TASK, seed=SEED))
+    doc = json.loads((out / "runs" / name).read_text())
     return {
         "native": {c["id"]: tuple(c["native"]) for c in doc["candidates"]},
         "values": {c["id"]: c["value"] for c in doc["candidates"]},

@@ -24,10 +24,20 @@ from localpbo_msgs_py.topics import STATUS
 OPT = {"algorithm": "sobol", "task_options": '{"episode_steps": 50, "value_range": 50.0}'}
 
 
-def call(ros: Any, srv_type: type, name: str, request: Any) -> Any:
+_SERVICES = {
+    DescribeParameters: "describe_parameters",
+    GetParameters: "get_parameters",
+    ListParameters: "list_parameters",
+    SetParameters: "set_parameters",
+}
+
+
+def call(ros: Any, node: str, srv_type: Any, **request: Any) -> Any:
+    """Call ``node``'s parameter service of type ``srv_type`` with a request of these fields."""
+    name = f"/{node}/{_SERVICES[srv_type]}"
     client = ros.probe.create_client(srv_type, name)
     assert ros.spin_until(client.service_is_ready, 10), f"no service {name}"
-    future = client.call_async(request)
+    future = client.call_async(srv_type.Request(**request))
     assert ros.spin_until(future.done, 10), f"no answer from {name}"
     ros.probe.destroy_client(client)
     return future.result()
@@ -35,13 +45,10 @@ def call(ros: Any, srv_type: type, name: str, request: Any) -> Any:
 
 def test_parameters_listed_read_and_described(ros: Any) -> None:
     ros.add(OptimizerNode(context=ros.ctx, overrides={**OPT, "budget": 12}))
-    listed = call(ros, ListParameters, "/optimizer_node/list_parameters", ListParameters.Request())
+    listed = call(ros, "optimizer_node", ListParameters)
     assert {p.name for p in PARAMS} <= set(listed.result.names)
     got = call(
-        ros,
-        GetParameters,
-        "/optimizer_node/get_parameters",
-        GetParameters.Request(names=["budget", "algorithm", "noise_fraction"]),
+        ros, "optimizer_node", GetParameters, names=["budget", "algorithm", "noise_fraction"]
     )
     budget, algorithm, noise = got.values
     assert budget.type == ParameterType.PARAMETER_INTEGER and budget.integer_value == 12
@@ -49,9 +56,9 @@ def test_parameters_listed_read_and_described(ros: Any) -> None:
     assert noise.double_value == 0.1
     described = call(
         ros,
+        "optimizer_node",
         DescribeParameters,
-        "/optimizer_node/describe_parameters",
-        DescribeParameters.Request(names=["budget", "noise_fraction", "failure_policy"]),
+        names=["budget", "noise_fraction", "failure_policy"],
     )
     budget_d, noise_d, policy_d = described.descriptors
     assert all(d.read_only for d in described.descriptors)
@@ -65,15 +72,10 @@ def test_parameters_listed_read_and_described(ros: Any) -> None:
 
 def test_set_of_a_read_only_parameter_is_refused(ros: Any) -> None:
     node = ros.add(OptimizerNode(context=ros.ctx, overrides=OPT))
-    request = SetParameters.Request(
-        parameters=[
-            Parameter(
-                name="budget",
-                value=ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=5),
-            )
-        ]
+    budget = Parameter(
+        name="budget", value=ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=5)
     )
-    answer = call(ros, SetParameters, "/optimizer_node/set_parameters", request)
+    answer = call(ros, "optimizer_node", SetParameters, parameters=[budget])
     (result,) = answer.results
     assert not result.successful and "read-only" in result.reason
     assert node.get_parameter("budget").value == 0
@@ -106,7 +108,7 @@ def test_node_names_match_the_executables_and_remap(
         )
     )
     assert renamed.get_name() == "other"
-    listed = call(ros, ListParameters, "/other/list_parameters", ListParameters.Request())
+    listed = call(ros, "other", ListParameters)
     assert listed.result.names
     statuses = ros.collect(STATUS)
     renamed.publish_status()

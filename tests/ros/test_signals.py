@@ -10,6 +10,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -35,12 +37,22 @@ def _start(cmd: list[str], bag: Path | None, **extra_env: str) -> subprocess.Pop
     )
 
 
+@contextmanager
+def _running(cmd: list[str], bag: Path | None, **extra_env: str) -> Iterator[subprocess.Popen[str]]:
+    """:func:`_start` ``cmd``; killed on leaving if it has not ended by then."""
+    proc = _start(cmd, bag, **extra_env)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
 @pytest.mark.parametrize(
     ("module", "second", "gap_s"),
     [
-        ("recorder_node", signal.SIGINT, 0.0),
-        ("recorder_node", signal.SIGINT, 0.03),
-        ("recorder_node", signal.SIGINT, 0.1),
+        *[("recorder_node", signal.SIGINT, gap_s) for gap_s in (0.0, 0.03, 0.1)],
         ("recorder_node", signal.SIGTERM, 0.05),
         ("sim_node", signal.SIGINT, 0.05),
     ],
@@ -49,21 +61,16 @@ def test_second_signal_still_stops_cleanly(
     module: str, second: signal.Signals, gap_s: float, tmp_path: Path
 ) -> None:
     bag = tmp_path / "sig.mcap"
-    proc = _start(
+    with _running(
         [sys.executable, "-m", f"localpbo_ros.{module}"],
         bag if module == "recorder_node" else None,
-    )
-    try:
+    ) as proc:
         lines = wait_ready(proc)
         proc.send_signal(signal.SIGINT)
         time.sleep(gap_s)
         proc.send_signal(second)
         out = "".join(lines) + proc.stdout.read()
         code = proc.wait(30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert code == 0, out
     assert "Traceback" not in out, out
     if module == "recorder_node":
@@ -81,17 +88,12 @@ def test_output_logged_while_stopping_is_not_lost(tmp_path: Path) -> None:
 
 def test_clean_up_that_hangs_is_reported_and_ended(tmp_path: Path) -> None:
     script = str(Path(__file__).with_name("hanging_close.py"))
-    proc = _start([sys.executable, script], tmp_path / "stop.mcap")
-    try:
+    with _running([sys.executable, script], tmp_path / "stop.mcap") as proc:
         wait_ready(proc)
         proc.send_signal(signal.SIGINT)
         start = time.monotonic()
         out, _ = proc.communicate(timeout=30)
         took = time.monotonic() - start
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     # STOP_GRACE_S is 2 s in the script: the watchdog ends the process, code 1, and the stack
     # it prints shows where the clean-up hung
     assert proc.returncode == 1, out
@@ -103,17 +105,12 @@ def test_a_node_may_take_its_declared_close_timeout(tmp_path: Path) -> None:
     # close() sleeps 3 s, beyond the script's 2 s grace but within the 2 + 2 s the node
     # declares (as the bridge does for restoring parameters): a clean stop, the bag complete
     script = str(Path(__file__).with_name("hanging_close.py"))
-    proc = _start(
+    with _running(
         [sys.executable, script], tmp_path / "stop.mcap", CLOSE_SLEEP_S="3", CLOSE_TIMEOUT_S="2"
-    )
-    try:
+    ) as proc:
         wait_ready(proc)
         proc.send_signal(signal.SIGINT)
         out, _ = proc.communicate(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert proc.returncode == 0, out
     assert "Traceback" not in out and "Timeout" not in out, out
     assert summarize(tmp_path / "stop.mcap").complete
@@ -137,20 +134,15 @@ def test_signal_while_importing_stops_cleanly(
     point of its first second (its imports of rclpy, numpy, torch): exit 0, no traceback."""
     rng = random.Random(seed)
     bag = tmp_path / "early.mcap"
-    proc = _start(
+    with _running(
         [sys.executable, "-c", f"from localpbo_ros.entry import {exe}; {exe}()"],
         bag if exe == "recorder_node" else None,
         PYTHONPROFILEIMPORTTIME="1",
-    )
-    try:
+    ) as proc:
         wait_for_guard(proc.pid)
         time.sleep(rng.uniform(0.0, 0.8))
         proc.send_signal(sig)
         out, _ = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert proc.returncode == 0, out
     assert "Traceback" not in out, out
     assert imported_before_guard(out) == []  # the guard came before the heavy imports

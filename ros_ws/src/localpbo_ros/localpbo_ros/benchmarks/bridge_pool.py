@@ -42,7 +42,7 @@ import tempfile
 import time
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -397,19 +397,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episode-steps", type=int, default=Setup.episode_steps)
     parser.add_argument("--repeats", type=int, default=1, help="1 vs N pairs, alternating")
     parser.add_argument("--domain", type=int, default=Setup.domain)
-    parser.add_argument("--timeout", type=float, default=Setup.timeout_s)
+    parser.add_argument("--timeout", dest="timeout_s", type=float, default=Setup.timeout_s)
     parser.add_argument("--out", type=Path, help="keep bags and logs here (default: temporary)")
     args = parser.parse_args(argv)
-    setup = Setup(
-        budget=args.budget,
-        batch_size=args.batch_size,
-        seed=args.seed,
-        rate_hz=args.rate_hz,
-        steps_per_tick=args.steps_per_tick,
-        episode_steps=args.episode_steps,
-        domain=args.domain,
-        timeout_s=args.timeout,
-    )
+    setup = Setup(**{f.name: getattr(args, f.name) for f in fields(Setup)})
     out = args.out or Path(tempfile.mkdtemp(prefix="bridge-pool-"))
     n = args.workers
     print(
