@@ -1,9 +1,10 @@
 """Which tests may run side by side under ``pytest -n 2 --dist loadgroup`` (``make test``).
 
 Tests that start node processes share fixed ROS domain ids and look at the processes and
-sockets of this host; tests that start Ray share its session folder and ports. Each of those
-kinds runs in one xdist group (one worker, one test at a time); every other test runs on
-whichever worker is free. Without xdist (plain ``pytest``) the groups change nothing.
+sockets of this host; tests that start Ray share its session folder and ports; the tests of
+the stored results read every stored run once per module. Each of those kinds runs in one
+xdist group (one worker, one test at a time); every other test runs on whichever worker is
+free. Without xdist (plain ``pytest``) the groups change nothing.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "ros": (*PROCESS_TESTS, "test_entry_points.py", "test_docs_commands.py", "test_no_ros.py"),
     # an embedded or started Ray cluster
     "ray": ("test_sweep.py", "test_sweep_cluster.py"),
+    # every stored run read once per module (a module-scoped fixture is made once per worker)
+    "stored-runs": ("test_notes_coverage.py", "test_results_page.py"),
 }
 """xdist group name -> test files (relative to ``tests/``). Two groups may run at the same
 time, so the ROS domains of "ros-stops" are used by no other test."""

@@ -26,8 +26,11 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scipy.stats import qmc
@@ -43,13 +46,33 @@ def sobol_points(dim: int, n: int, seed: int) -> np.ndarray:
         return qmc.Sobol(dim, scramble=True, seed=seed).random(n)
 
 
-def sobol_values(name: str, n_points: int) -> np.ndarray:
-    """``true_value`` at the first n scrambled Sobol points (seed 0) of problem ``name``."""
+_WORKER_PROBLEM: list[object] = []
+
+
+def _start_worker(name: str) -> None:
+    _WORKER_PROBLEM[:] = [make_problem(name)]
+
+
+def _worker_value(point: np.ndarray) -> float:
+    return float(_WORKER_PROBLEM[0].true_value(point))  # type: ignore[attr-defined]
+
+
+def sobol_values(name: str, n_points: int, workers: int | None = None) -> np.ndarray:
+    """``true_value`` at the first n scrambled Sobol points (seed 0) of problem ``name``.
+
+    A MuJoCo task's points are evaluated by ``workers`` processes (default: one per core);
+    each value depends on its point only, so the values are the same for any ``workers``."""
     problem = make_problem(name)
     points = sobol_points(problem.dim, n_points, seed=0)
     if isinstance(problem, SyntheticProblem):
         return np.asarray(problem.values(points), dtype=np.float64)
-    return np.array([problem.true_value(p) for p in points])
+    workers = min(workers or os.cpu_count() or 1, n_points)
+    if workers <= 1:
+        return np.array([problem.true_value(p) for p in points])
+    with ProcessPoolExecutor(
+        workers, multiprocessing.get_context("spawn"), _start_worker, (name,)
+    ) as pool:
+        return np.array(list(pool.map(_worker_value, points, chunksize=4)))
 
 
 def spread(
@@ -65,11 +88,15 @@ def spread(
 
 
 def value_range(
-    name: str, n_points: int, quantiles: tuple[float, float] | None = None
+    name: str,
+    n_points: int,
+    quantiles: tuple[float, float] | None = None,
+    workers: int | None = None,
 ) -> tuple[float, float, float]:
     """(high − low, low, high) of ``true_value`` over n scrambled Sobol points (seed 0):
-    max − min, or the spread between the percentiles ``quantiles``."""
-    return spread(sobol_values(name, n_points), quantiles)
+    max − min, or the spread between the percentiles ``quantiles`` (``workers``: as
+    :func:`sobol_values`)."""
+    return spread(sobol_values(name, n_points, workers), quantiles)
 
 
 def sobol_baseline(name: str, seed: int, budget: int) -> tuple[float, float]:
@@ -95,6 +122,12 @@ def main(argv: list[str] | None = None) -> None:
         help="LO,HI: the spread between these percentiles instead of max - min (e.g. 1,99)",
     )
     parser.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        help="processes evaluating a MuJoCo task's points (default: one per core)",
+    )
+    parser.add_argument(
         "--sobol-seeds", default="", help="comma-separated seeds for the Sobol baseline"
     )
     parser.add_argument(
@@ -107,7 +140,7 @@ def main(argv: list[str] | None = None) -> None:
         if args.quantiles:
             lo, hi = (float(q) for q in args.quantiles.split(","))
             quantiles = (lo, hi)
-        width, low, high = value_range(args.problem, args.points, quantiles)
+        width, low, high = value_range(args.problem, args.points, quantiles, args.workers or None)
         ends = (
             "min, max" if quantiles is None else f"percentiles {quantiles[0]:g}, {quantiles[1]:g}"
         )

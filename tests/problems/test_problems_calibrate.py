@@ -51,3 +51,9 @@ def test_cli_prints_value_range(capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     width, low, high = value_range("hartmann6", 1024, (1, 99))
     assert f"value_range={width!r} (percentiles 1, 99: {low:.6g}, {high:.6g};" in out
+
+
+def test_mujoco_values_do_not_depend_on_the_worker_processes() -> None:
+    one = sobol_values("hopper", 6, workers=1)
+    two = sobol_values("hopper", 6, workers=2)
+    assert one.tobytes() == two.tobytes()
