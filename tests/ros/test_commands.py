@@ -15,7 +15,7 @@ def parse(argv):
     return parser.parse_args(argv)
 
 
-def test_default_run_is_turpbo_on_swimmer() -> None:
+def test_default_run_is_the_default_algorithm_on_swimmer() -> None:
     args = parse(["run"])
     settings = {p.name: p.default for p in PARAMS}
     settings.update(run_settings(args))
@@ -23,7 +23,7 @@ def test_default_run_is_turpbo_on_swimmer() -> None:
     settings["task_options"] = {}
     config = config_from_settings(settings)
     assert (config.algorithm, config.task, config.budget, config.dim) == (
-        "turpbo",
+        "gipbor",
         "swimmer",
         162,
         16,
