@@ -35,6 +35,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from scipy.stats import qmc
 
+from .base import Problem
 from .registry import available_problems, make_problem
 from .synthetic import SyntheticProblem
 
@@ -46,7 +47,8 @@ def sobol_points(dim: int, n: int, seed: int) -> np.ndarray:
         return qmc.Sobol(dim, scramble=True, seed=seed).random(n)
 
 
-_WORKER_PROBLEM: list[object] = []
+_WORKER_PROBLEM: list[Problem] = []
+"""A worker process's problem, made once by :func:`_start_worker`."""
 
 
 def _start_worker(name: str) -> None:
@@ -54,7 +56,7 @@ def _start_worker(name: str) -> None:
 
 
 def _worker_value(point: np.ndarray) -> float:
-    return float(_WORKER_PROBLEM[0].true_value(point))  # type: ignore[attr-defined]
+    return float(_WORKER_PROBLEM[0].true_value(point))
 
 
 def sobol_values(name: str, n_points: int, workers: int | None = None) -> np.ndarray:
