@@ -176,6 +176,12 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         help="copy runs that the sweep in DIR stored with the same settings, options at "
         "their defaults included (repeatable)",
     )
+    sweep.add_argument(
+        "--rerun-changed",
+        action="store_true",
+        help="run again the stored runs whose algorithm's code changed since they were stored "
+        "(or carry no known code version)",
+    )
     sweep.add_argument("--dry-run", action="store_true", help="list the runs and their state")
     sweep.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     add_report_command(sub)

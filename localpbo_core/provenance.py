@@ -15,7 +15,13 @@ carries a ``code`` block with
   sources differed from it.
 
 :func:`stale_algorithms` compares stored blocks with today's code; the results page flags
-the groups it finds.
+the groups it finds. :func:`run_code_state` says of one stored run whether today's code would
+make it again ("current", "same behaviour") or not ("changed since", "none stored"); a run
+stored without a block is dated by the commit that stored it (``stored_code.json``,
+:func:`stored_by_commit`), and a recorded re-run that gave the same trace bit for bit with
+the old and today's code (``equivalent_code.json``, :func:`equivalent_digests`) makes an older
+block "same behaviour". ``localpbo sweep --rerun-changed`` runs again every run whose state is
+"changed since" or "none stored".
 """
 
 from __future__ import annotations
@@ -166,6 +172,80 @@ def stale_algorithms(docs: Iterable[dict[str, Any]]) -> dict[str, str]:
         elif code.get("algorithm_digest") != code_block(algorithm)["algorithm_digest"]:
             out[algorithm] = "changed since stored"
     return out
+
+
+CODE_CURRENT = "current"
+"""The run's algorithm sources are today's."""
+CODE_SAME = "same behaviour"
+"""They changed, but re-runs with both codes on one machine gave the same trace bit for bit."""
+CODE_CHANGED = "changed since"
+"""They changed after the run was stored: a re-run may differ."""
+CODE_NONE = "none stored"
+"""No code version is known for the run."""
+STALE_STATES = (CODE_CHANGED, CODE_NONE)
+"""The states of runs that today's code is not known to make again."""
+
+
+def known_code(
+    doc: dict[str, Any],
+    stored_by: tuple[str, dict[str, Any]] | None,
+    pairs: dict[str, set[tuple[str, str]]],
+) -> dict[str, Any] | None:
+    """The code block known for the stored run ``doc``: its own, or for a run stored without
+    one the digests of the commit that stored it (``stored_by``, an entry of
+    :func:`stored_by_commit`, marked ``stored_by_commit``); None if neither is known.
+    ``same_behaviour`` is set when ``pairs`` (:func:`equivalent_digests`) lead from its
+    algorithm digest to today's (:func:`same_behaviour`)."""
+    algorithm = str(doc["settings"]["algorithm"])
+    code = doc.get("code")
+    if isinstance(code, dict):
+        block = dict(code)
+    elif stored_by is not None and algorithm in stored_by[1]["algorithms"]:
+        commit, digests = stored_by
+        block = {
+            "digest": digests["digest"],
+            "algorithm_digest": digests["algorithms"][algorithm],
+            "commit": commit,
+            "dirty": False,
+            "stored_by_commit": True,
+        }
+    else:
+        return None
+    if same_behaviour(algorithm, str(block.get("algorithm_digest")), pairs):
+        block["same_behaviour"] = True
+    return block
+
+
+def code_state(algorithm: str, block: dict[str, Any] | None) -> str:
+    """:data:`CODE_CURRENT`, :data:`CODE_SAME`, :data:`CODE_CHANGED` or :data:`CODE_NONE`
+    for a run of ``algorithm`` whose known code block (:func:`known_code`) is ``block``."""
+    if block is None:
+        return CODE_NONE
+    if block.get("algorithm_digest") == code_block(algorithm)["algorithm_digest"]:
+        return CODE_CURRENT
+    return CODE_SAME if block.get("same_behaviour") else CODE_CHANGED
+
+
+class ProvenanceTables:
+    """The ``stored_code.json`` and ``equivalent_code.json`` files of some folders, read
+    once: what :func:`run_code_state` needs besides a run's document."""
+
+    def __init__(self, folders: Iterable[Path]) -> None:
+        self.by_commit: dict[Path, tuple[str, dict[str, Any]]] = {}
+        self.pairs: dict[str, set[tuple[str, str]]] = {}
+        for folder in folders:
+            self.by_commit.update(stored_by_commit(folder / "stored_code.json"))
+            for algorithm, found in equivalent_digests(folder / "equivalent_code.json").items():
+                self.pairs.setdefault(algorithm, set()).update(found)
+
+    def known_code(self, path: Path, doc: dict[str, Any]) -> dict[str, Any] | None:
+        """:func:`known_code` of the run stored at ``path``."""
+        return known_code(doc, self.by_commit.get(path.resolve()), self.pairs)
+
+
+def run_code_state(path: Path, doc: dict[str, Any], tables: ProvenanceTables) -> str:
+    """:func:`code_state` of the run ``doc`` stored at ``path``."""
+    return code_state(str(doc["settings"]["algorithm"]), tables.known_code(path, doc))
 
 
 def stored_by_commit(table: Path) -> dict[Path, tuple[str, dict[str, Any]]]:

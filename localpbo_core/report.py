@@ -47,6 +47,7 @@ from localpbo_core.experiments.paper import (
     problem_key,
 )
 from localpbo_core.experiments.spec import RunLabels
+from localpbo_core.provenance import CODE_CHANGED, CODE_NONE
 from localpbo_core.run_documents import run_files
 from localpbo_core.settings import SettingError
 
@@ -74,16 +75,11 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     dates the runs stored without a code version by the commit that stored them, its
     ``equivalent_code.json`` says which code changes left traces unchanged
     (:mod:`localpbo_core.experiments.stored_code`, :mod:`localpbo_core.experiments.drift`)."""
-    from localpbo_core.provenance import equivalent_digests, stored_by_commit
+    from localpbo_core.provenance import ProvenanceTables
     from localpbo_core.sweep import read_run
 
     paths = list(paths)
-    by_commit: dict[Path, tuple[str, dict[str, Any]]] = {}
-    pairs: dict[str, set[tuple[str, str]]] = {}
-    for folder in (Path(p) for p in paths if Path(p).is_dir()):
-        by_commit.update(stored_by_commit(folder / "stored_code.json"))
-        for algorithm, found in equivalent_digests(folder / "equivalent_code.json").items():
-            pairs.setdefault(algorithm, set()).update(found)
+    tables = ProvenanceTables(Path(p) for p in paths if Path(p).is_dir())
     runs = []
     for path in run_files(paths):
         doc = read_run(path)
@@ -109,7 +105,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
                 cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
                 optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
                 reused_from=str(meta.get("reused_from", "")),
-                code=_code_of(doc, by_commit.get(path.resolve()), pairs),
+                code=tables.known_code(path, doc),
             )
         )
     if not runs:
@@ -135,34 +131,6 @@ def complete_groups(runs: Sequence[StoredRun], seeds: Sequence[int]) -> list[Sto
         if r.seed in wanted
         and wanted <= have[(r.spec, r.problem_label, r.variant, r.algorithm_label)]
     ]
-
-
-def _code_of(
-    doc: dict[str, Any],
-    stored_by: tuple[str, dict[str, Any]] | None,
-    pairs: dict[str, set[tuple[str, str]]],
-) -> dict[str, Any] | None:
-    """The code block :class:`StoredRun` keeps (its ``code`` attribute)."""
-    from localpbo_core.provenance import same_behaviour
-
-    algorithm = str(doc["settings"]["algorithm"])
-    code = doc.get("code")
-    if isinstance(code, dict):
-        block = dict(code)
-    elif stored_by is not None and algorithm in stored_by[1]["algorithms"]:
-        commit, digests = stored_by
-        block = {
-            "digest": digests["digest"],
-            "algorithm_digest": digests["algorithms"][algorithm],
-            "commit": commit,
-            "dirty": False,
-            "stored_by_commit": True,
-        }
-    else:
-        return None
-    if same_behaviour(algorithm, str(block.get("algorithm_digest")), pairs):
-        block["same_behaviour"] = True
-    return block
 
 
 # ---------------------------------------------------------------------- tables
@@ -290,27 +258,16 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
 
 
 # ---------------------------------------------------------------------- provenance
-CODE_CURRENT = "current"
-CODE_SAME = "same behaviour"
-CODE_CHANGED = "changed since"
-CODE_NONE = "none stored"
-
-
 def code_state(run: StoredRun) -> str:
-    """Which code made ``run``: :data:`CODE_NONE` (no code version known),
-    :data:`CODE_CURRENT` (its algorithm's sources are today's,
-    :func:`localpbo_core.provenance.code_block`), :data:`CODE_SAME` (they changed, but
-    re-runs with both codes on one machine gave the same trace bit for bit) or
-    :data:`CODE_CHANGED`. A run stored without a code version is judged by the commit that
-    stored it."""
-    if run.code is None:
-        return CODE_NONE
-    from localpbo_core.provenance import code_block
+    """Which code made ``run``: :data:`~localpbo_core.provenance.CODE_NONE` (no code version
+    known), :data:`~localpbo_core.provenance.CODE_CURRENT` (its algorithm's sources are
+    today's), :data:`~localpbo_core.provenance.CODE_SAME` (they changed, but re-runs with both
+    codes on one machine gave the same trace bit for bit) or
+    :data:`~localpbo_core.provenance.CODE_CHANGED`. A run stored without a code version is
+    judged by the commit that stored it (:func:`localpbo_core.provenance.code_state`)."""
+    from localpbo_core.provenance import code_state as state
 
-    today = code_block(str(run.settings["algorithm"]))["algorithm_digest"]
-    if run.code.get("algorithm_digest") == today:
-        return CODE_CURRENT
-    return CODE_SAME if run.code.get("same_behaviour") else CODE_CHANGED
+    return state(str(run.settings["algorithm"]), run.code)
 
 
 def code_cell(runs: Sequence[StoredRun]) -> str:

@@ -28,6 +28,15 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
+* **Re-run** (``--rerun-changed``): a stored run that today's code is not known to make again
+  (its algorithm's sources changed since it was stored and no recorded re-run showed the same
+  trace, or no code version is known: "changed since" and "none stored" of
+  :func:`localpbo_core.provenance.run_code_state`) is run again. The tables that date runs
+  without a code block (``stored_code.json``) and record equivalent code
+  (``equivalent_code.json``) are read from ``OUT`` and its parent, where the results folder
+  keeps them. The stored file is replaced only when the new run is written (atomically), so
+  an interrupted re-run keeps the old run and the same command continues; a re-run is never
+  copied by ``--reuse``.
 * **Reuse** (``--reuse DIR``, repeatable): a run that another sweep already stored in
   ``DIR/runs/`` with the same settings is copied instead of computed; its ``run`` block is
   this spec's, with ``reused_from`` naming the source (``<spec>/<run_id>``), and its
@@ -57,7 +66,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from localpbo_core.experiments import ExperimentSpec, PlannedRun
-from localpbo_core.provenance import code_block
+from localpbo_core.provenance import STALE_STATES, ProvenanceTables, code_block, run_code_state
 from localpbo_core.settings import SettingError
 
 RUN_SUFFIX = ".json.gz"
@@ -67,7 +76,8 @@ MAX_RETRIES = 3
 
 @dataclass
 class SweepResult:
-    """What a sweep did: run ids finished now, skipped as already stored, failed, and left
+    """What a sweep did: run ids finished now (``rerun``: those of them that replaced a run
+    stored by older code), skipped as already stored, failed, and left
     to run (beyond ``max_runs``, or unfinished when the sweep was interrupted)."""
 
     finished: list[str] = field(default_factory=list)
@@ -76,6 +86,7 @@ class SweepResult:
     pending: list[str] = field(default_factory=list)
     interrupted: bool = False
     reused: list[str] = field(default_factory=list)
+    rerun: list[str] = field(default_factory=list)
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -143,6 +154,18 @@ def is_finished(out: Path, plan: PlannedRun) -> bool:
             "--out", f"{path} holds run {plan.run_id} with other settings; use another --out"
         )
     return True
+
+
+def is_stale(out: Path, plan: PlannedRun, tables: ProvenanceTables) -> bool:
+    """True if the stored run of ``plan`` (finished, :func:`is_finished`) was made by code
+    that today's is not known to reproduce (module docstring, "Re-run")."""
+    path = run_path(out, plan)
+    return run_code_state(path, read_run(path), tables) in STALE_STATES
+
+
+def rerun_tables(out: Path) -> ProvenanceTables:
+    """The provenance tables ``--rerun-changed`` reads: those in ``out`` and its parent."""
+    return ProvenanceTables(dict.fromkeys((out, out.resolve().parent)))
 
 
 def effective_settings(settings: dict[str, Any]) -> dict[str, Any] | None:
@@ -293,6 +316,7 @@ def sweep(
     on_stored: Callable[[PlannedRun], None] | None = None,
     stop_on_sigterm: bool = False,
     reuse: Sequence[Path] = (),
+    rerun_changed: bool = False,
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -310,6 +334,8 @@ def sweep(
             from the main thread; ``localpbo sweep`` sets it).
         reuse: folders of other sweeps whose identical runs are copied, not computed
             (module docstring, "Reuse"); ``max_runs`` counts computed runs only.
+        rerun_changed: run again the stored runs made by code today's is not known to
+            reproduce (module docstring, "Re-run"); they count as unfinished.
 
     Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
     stops the runs under way and returns with ``interrupted`` set; every run finished before
@@ -322,9 +348,15 @@ def sweep(
     todo = []
     copies: list[tuple[PlannedRun, Path]] = []
     index = ReuseIndex(reuse)
+    tables = rerun_tables(out) if rerun_changed else None
+    stale: set[str] = set()
     for plan in plans:
         if is_finished(out, plan):
-            result.skipped.append(plan.run_id)
+            if tables is not None and is_stale(out, plan, tables):
+                stale.add(plan.run_id)
+                todo.append(plan)
+            else:
+                result.skipped.append(plan.run_id)
         elif index and (source := index.find(plan)) is not None:
             copies.append((plan, source))
         else:
@@ -342,6 +374,8 @@ def sweep(
     def store(plan: PlannedRun, doc: dict[str, Any]) -> None:
         write_run(run_path(out, plan), doc)
         result.finished.append(plan.run_id)
+        if plan.run_id in stale:
+            result.rerun.append(plan.run_id)
         bar.set_postfix_str(plan.run_id, refresh=False)
         bar.update(1)
         if on_stored is not None:
@@ -517,23 +551,32 @@ def _spec_document(spec: ExperimentSpec) -> dict[str, Any]:
 
 
 def format_dry_run(
-    out: Path, plans: Sequence[PlannedRun], max_runs: int | None, reuse: Sequence[Path] = ()
+    out: Path,
+    plans: Sequence[PlannedRun],
+    max_runs: int | None,
+    reuse: Sequence[Path] = (),
+    rerun_changed: bool = False,
 ) -> str:
-    """One line per run: its id, state (finished / reuse / will run / left for later) and
-    budget."""
+    """One line per run: its id, state (finished / reuse / will run / will rerun / left for
+    later) and budget."""
     lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
-    counts = {"finished": 0, "reuse": 0, "will run": 0, "later": 0}
+    counts = {"finished": 0, "reuse": 0, "will run": 0, "will rerun": 0, "later": 0}
     if not reuse:
         del counts["reuse"]
+    if not rerun_changed:
+        del counts["will rerun"]
     started = 0
     index = ReuseIndex(reuse)
+    tables = rerun_tables(out) if rerun_changed else None
     for plan in plans:
-        if is_finished(out, plan):
+        finished = is_finished(out, plan)
+        rerun = finished and tables is not None and is_stale(out, plan, tables)
+        if finished and not rerun:
             state = "finished"
-        elif index and index.find(plan) is not None:
+        elif not finished and index and index.find(plan) is not None:
             state = "reuse"
         elif max_runs is None or started < max_runs:
-            state, started = "will run", started + 1
+            state, started = "will rerun" if rerun else "will run", started + 1
         else:
             state = "later"
         counts[state] += 1
@@ -564,7 +607,7 @@ def main_sweep(args: Any) -> int:
         if not folder.is_dir():
             raise SettingError("--reuse", f"{folder} is not a folder")
     if args.dry_run:
-        print(format_dry_run(out, plans, args.max_runs, reuse))
+        print(format_dry_run(out, plans, args.max_runs, reuse, args.rerun_changed))
         return 0
     if args.address is not None and not args.in_process:
         check_address(args.address)
@@ -580,10 +623,12 @@ def main_sweep(args: Any) -> int:
         progress=not args.no_progress,
         stop_on_sigterm=True,
         reuse=reuse,
+        rerun_changed=args.rerun_changed,
     )
     reused = f"{len(result.reused)} reused, " if reuse else ""
+    rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""
     print(
-        f"{spec.name}: {len(result.finished)} runs finished, {reused}{len(result.skipped)} "
+        f"{spec.name}: {len(result.finished)} runs finished{rerun}, {reused}{len(result.skipped)} "
         f"already stored, {len(result.failed)} failed, {len(result.pending)} left "
         f"({time.perf_counter() - start:.1f} s); results in {out / 'runs'}"
     )

@@ -136,11 +136,8 @@ def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() 
 def test_provenance_per_run_group_and_spec() -> None:
     """A run with today's algorithm digest is current, another digest "changed since", none
     "none stored"; the provenance table lists the groups made by other code per spec."""
-    from localpbo_core.provenance import code_block
+    from localpbo_core.provenance import CODE_CHANGED, CODE_CURRENT, CODE_NONE, code_block
     from localpbo_core.report import (
-        CODE_CHANGED,
-        CODE_CURRENT,
-        CODE_NONE,
         code_cell,
         code_state,
         provenance_table,
@@ -180,12 +177,14 @@ def test_runs_without_code_are_dated_by_their_storing_commit(tmp_path) -> None:
     import gzip
     import json
 
-    from localpbo_core.provenance import code_block
-    from localpbo_core.report import (
+    from localpbo_core.provenance import (
         CODE_CHANGED,
         CODE_CURRENT,
         CODE_NONE,
         CODE_SAME,
+        code_block,
+    )
+    from localpbo_core.report import (
         code_state,
         load_runs,
         provenance_table,

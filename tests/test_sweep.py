@@ -173,6 +173,95 @@ def test_filters_and_dry_run(spec, reference, capsys) -> None:
     assert "2 finished, 0 will run" in out
 
 
+def _rewrite(path: Path, change) -> None:
+    """Store the run at ``path`` again after ``change(doc)``."""
+    from localpbo_core.sweep import write_run
+
+    doc = read_run(path)
+    change(doc)
+    write_run(path, doc)
+
+
+def test_rerun_changed_replaces_only_runs_of_older_code(spec, reference, tmp_path) -> None:
+    """``--rerun-changed`` runs again a run whose algorithm digest is not today's and one
+    without a code version, keeps current ones, keeps the old file until the new one is
+    stored (an interrupted re-run continues), and the re-runs equal the reference runs."""
+    import shutil
+
+    out = tmp_path / "results" / "tiny"
+    shutil.copytree(reference, out)
+    ids = [p.run_id for p in spec.runs()]
+    changed, unknown = ids[0], ids[-1]
+    _rewrite(out / "runs" / f"{changed}.json.gz", lambda d: d["code"].update(algorithm_digest="0"))
+    _rewrite(out / "runs" / f"{unknown}.json.gz", lambda d: d.pop("code"))
+    before = {i: (out / "runs" / f"{i}.json.gz").read_bytes() for i in ids}
+
+    assert main(["sweep", "tiny", "--out", str(out), "--dry-run", "--rerun-changed"]) == 0
+    plain = sweep(spec, out, in_process=True, progress=False)
+    assert not plain.finished and len(plain.skipped) == 4
+
+    def stop_after_first(plan) -> None:
+        raise KeyboardInterrupt
+
+    first = sweep(
+        spec, out, in_process=True, progress=False, rerun_changed=True, on_stored=stop_after_first
+    )
+    assert first.interrupted and first.rerun == first.finished == [changed]
+    assert first.pending == [unknown]
+    assert (out / "runs" / f"{unknown}.json.gz").read_bytes() == before[unknown]
+    second = sweep(spec, out, in_process=True, progress=False, rerun_changed=True)
+    assert second.rerun == second.finished == [unknown]
+    assert sorted(second.skipped) == sorted(set(ids) - {unknown})
+    for i in set(ids) - {changed, unknown}:
+        assert (out / "runs" / f"{i}.json.gz").read_bytes() == before[i]
+    assert_same_runs(spec, out, reference)
+    third = sweep(spec, out, in_process=True, progress=False, rerun_changed=True)
+    assert not third.finished and len(third.skipped) == 4
+
+
+def test_rerun_changed_keeps_runs_of_equivalent_or_dated_code(spec, reference, tmp_path) -> None:
+    """A run of older code that a recorded re-run showed equivalent
+    (``equivalent_code.json``) and a run without a code block that ``stored_code.json`` dates
+    to today's code (both in the results folder, the parent of ``--out``) are not re-run; the
+    dry run says which are."""
+    import json
+    import shutil
+
+    from localpbo_core.provenance import code_block
+
+    results = tmp_path / "results"
+    out = results / "tiny"
+    shutil.copytree(reference, out)
+    ids = [p.run_id for p in spec.runs()]
+    old, undated = ids[0], ids[-1]
+    algorithm = read_run(out / "runs" / f"{old}.json.gz")["settings"]["algorithm"]
+    undated_alg = read_run(out / "runs" / f"{undated}.json.gz")["settings"]["algorithm"]
+    _rewrite(out / "runs" / f"{old}.json.gz", lambda d: d["code"].update(algorithm_digest="0"))
+    _rewrite(out / "runs" / f"{undated}.json.gz", lambda d: d.pop("code"))
+    text = format_dry_run(out, spec.runs(), None, rerun_changed=True)
+    assert "2 finished, 0 will run, 2 will rerun" in text
+    today = code_block(algorithm)["algorithm_digest"]
+    entry = {"algorithm": algorithm, "from": "0", "to": today, "candidates": 8, "identical": 8}
+    (results / "equivalent_code.json").write_text(json.dumps([entry]))
+    (results / "stored_code.json").write_text(
+        json.dumps(
+            {
+                "commits": {
+                    "c0": {
+                        "digest": "d",
+                        "algorithms": {undated_alg: code_block(undated_alg)["algorithm_digest"]},
+                    }
+                },
+                "runs": {f"tiny/runs/{undated}.json.gz": "c0"},
+            }
+        )
+    )
+    text = format_dry_run(out, spec.runs(), None, rerun_changed=True)
+    assert "4 finished, 0 will run, 0 will rerun" in text
+    result = sweep(spec, out, in_process=True, progress=False, rerun_changed=True)
+    assert not result.finished and len(result.skipped) == 4
+
+
 def test_report_is_byte_identical(reference, tmp_path) -> None:
     a = write_report([reference], tmp_path / "a")
     b = write_report([reference], tmp_path / "b")
