@@ -176,7 +176,13 @@ def test_section_renders() -> None:
         for r in runs
         if r.algorithm_label == "sobol"
     ]
-    text = "\n".join(which_algorithm_section(runs, 0.05))
+    records = [
+        _record("hybrid", {}, "hartmann6", 1.9),
+        _record("hybrid", {}, "levy32", 0.8),
+        _record("hybrid_c0.5", {}, "hartmann6", 2.1),
+        _record("hybrid", {"confidence": 2}, "hartmann6", 0.5),
+    ]
+    text = "\n".join(which_algorithm_section(runs, 0.05, records))
     assert text.startswith("## Which algorithm to run\n")
     assert "| hybrid | 18 | 16 | 14 | 4 | 2 | 2× |" in text
     assert "| turpbo | 18 | 14 | 8 | — | — | — |" in text
@@ -184,13 +190,73 @@ def test_section_renders() -> None:
     assert "It picks **hybrid** (best or tied on 16 of 18 in final best-seen, 14 in final " in text
     assert f"the code's default (`DEFAULT_ALGORITHM`) is {DEFAULT_ALGORITHM}: they differ" in text
     assert "`localpbo run --algorithm hybrid` runs it." in text
-    assert "| hybrid | met (16) | met (4) | missed by 2 (2) | met (14) |" in text
+    assert (
+        "| hybrid | met (16) | met (4) | missed by 2 (2) | met (14) "
+        "| met (hartmann6 1.90×; levy32 0.80×) |" in text
+    )
+    assert (
+        "(`hybrid_compute_hartmann6.json`) on 2 cores, Linux x86_64, 2026-11-27: 1 s TuRPBO, "
+        in text
+    )
+    assert "1.9 s hybrid per run, 60 evaluations after the initial design, seeds 0, 1" in text
+    assert "hybrid (confidence=2) per run" not in text
     # Sobol's values under another label of the hybrid: tied with Sobol, 18 below TuRPBO
     assert "| hybrid_c0.5 | not" not in text
     assert (
         "| hybrid_c0.5 | missed by 16 (0) | missed by 3 (0) | missed by 18 (18) "
-        "| missed by 12 (0) |" in text
+        "| missed by 12 (0) | missed (hartmann6 2.10×) |" in text
     )
+
+
+def _record(algorithm: str, options: dict[str, Any], problem: str, ratio: float) -> dict[str, Any]:
+    """A decision-time record as ``hybrid_compute --out`` writes it (TuRPBO at 1 s a run)."""
+    return {
+        "command": f"python -m localpbo_core.benchmarks.hybrid_compute --problem {problem}",
+        "file": f"hybrid_compute_{problem}.json",
+        "machine": "2 cores, Linux x86_64",
+        "date": "2026-11-27",
+        "problem": problem,
+        "seeds": [0, 1],
+        "algorithm": algorithm,
+        "options": options,
+        "iterations": 60,
+        "turpbo_seconds_per_run": 1.0,
+        "hybrid_seconds_per_run": ratio,
+        "ratio": ratio,
+    }
+
+
+def test_decision_time_verdicts() -> None:
+    """Met when every record of the label is within 2× (the bound itself included), missed
+    when one is above, not measured without a record; options make another label."""
+    from localpbo_core.experiments.beyond import decision_time_verdict
+
+    records = [_record("hybrid", {}, "a", 2.0), _record("hybrid", {"cooldown": 1}, "b", 9.0)]
+    assert decision_time_verdict("hybrid", records) == "met (a 2.00×)"
+    assert decision_time_verdict("hybrid (cooldown=1)", records) == "missed (b 9.00×)"
+    records.append(_record("hybrid", {}, "c", 2.01))
+    assert decision_time_verdict("hybrid", records) == "missed (a 2.00×; c 2.01×)"
+    assert decision_time_verdict("hybrid_c0.5", records) == "not measured"
+
+
+def test_decision_time_benchmark_writes_its_record(tmp_path: Path) -> None:
+    """``hybrid_compute --out`` writes what it printed, and the page reads the file."""
+    from localpbo_core.benchmarks.hybrid_compute import main
+    from localpbo_core.experiments.beyond import read_decision_times
+
+    out = tmp_path / "hybrid_compute_hartmann6.json"
+    argv = ["--problem", "hartmann6", "--seeds", "0", "--budget", "14", "--out", str(out)]
+    assert main(argv) == 0
+    (record,) = read_decision_times(tmp_path)
+    assert record["file"] == out.name and record["problem"] == "hartmann6"
+    assert record["command"].endswith(" ".join(argv)) and record["iterations"] == 12
+    assert record["ratio"] == pytest.approx(
+        record["hybrid_seconds_per_run"] / record["turpbo_seconds_per_run"]
+    )
+    assert record["iterations"] == sum(
+        t["evaluations"][1] - t["evaluations"][0] + 1 for t in record["thirds"]
+    )
+    assert record["global_asks"] + record["local_asks"] == record["iterations"]
 
 
 def test_default_algorithm_is_the_evidence_choice() -> None:

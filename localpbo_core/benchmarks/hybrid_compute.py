@@ -9,18 +9,27 @@ hybrid is TuRPBO's plus the handover check (the gradient, its posterior covarian
 Newton steps, the Hessian at the center); a local ask fits the model and takes one step.
 
     python -m localpbo_core.benchmarks.hybrid_compute [--problem hartmann6] [--seeds 0-2]
-        [--option KEY=VALUE ...]
+        [--algorithm hybrid] [--option KEY=VALUE ...] [--budget N] [--out FILE]
 
-Asserts nothing.
+``--algorithm`` names the hybrid or one of its presets (``hybrid_c0.5``). ``--out FILE``
+also writes the figures, the command, the machine and the date as JSON; the results page
+reads every ``docs/diagnosis/hybrid_compute*.json`` for the hybrid's decision-time goal
+(:mod:`localpbo_core.experiments.beyond`). Asserts nothing.
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import json
+import os
+import platform
+import shlex
 import sys
 import time
 from collections.abc import Sequence
+from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 
@@ -53,7 +62,7 @@ def _option(text: str) -> tuple[str, object]:
 
 
 def _run(
-    problem: str, algorithm: str, seed: int, options: dict[str, object]
+    problem: str, algorithm: str, seed: int, options: dict[str, object], budget: int | None
 ) -> tuple[np.ndarray, list[str]]:
     """Per-evaluation decision seconds after the initial design, and the hybrid's modes."""
     settings = RunSettings(
@@ -61,7 +70,8 @@ def _run(
         problem=problem,
         seed=seed,
         noise_fraction=0.1,
-        optimizer_options=options if algorithm == "hybrid" else {},
+        budget=budget,
+        optimizer_options=options,
     )
     session = Session(settings)
     records = run_session(session).records
@@ -75,7 +85,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problem", default="hartmann6")
     parser.add_argument("--seeds", default="0-2", help="e.g. 0-2 or 0,3")
+    parser.add_argument(
+        "--algorithm", default="hybrid", help="the hybrid or one of its presets, e.g. hybrid_c0.5"
+    )
     parser.add_argument("--option", type=_option, action="append", default=[])
+    parser.add_argument("--budget", type=int, default=None, help="default: the paper's")
+    parser.add_argument("--out", default=None, help="also write the figures as JSON here")
     args = parser.parse_args(argv)
     use_fast_threads()
     options = dict(args.option)
@@ -86,21 +101,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     for seed in seeds:
         for algorithm in ("turpbo", "hybrid"):
-            secs, modes = _run(args.problem, algorithm, seed, options)
+            name, opts = (args.algorithm, options) if algorithm == "hybrid" else ("turpbo", {})
+            secs, modes = _run(args.problem, name, seed, opts, args.budget)
             per[algorithm].append(secs)
             if algorithm == "hybrid" and len(modes) == len(secs):  # q = 1: one per ask
                 global_s += [s for s, m in zip(secs, modes, strict=True) if m == "global"]
                 local_s += [s for s, m in zip(secs, modes, strict=True) if m == "local"]
     n_iter = min(min(len(s) for s in v) for v in per.values())
+    wall = time.perf_counter() - t0
     print(
         f"{args.problem}, seeds {seeds}, {n_iter} iterations after the initial design, "
-        f"hybrid options {options or 'default'} ({time.perf_counter() - t0:.0f} s wall)"
+        f"{args.algorithm} options {options or 'default'} ({wall:.0f} s wall)"
     )
     print(f"{'evaluations after init':>24} {'turpbo s':>10} {'hybrid s':>10} {'ratio':>7}")
     edges = np.linspace(0, n_iter, 4).astype(int)
+    thirds = []
     for lo, hi in itertools.pairwise(edges):
         tr = float(np.mean([s[lo:hi].mean() for s in per["turpbo"]]))
         hy = float(np.mean([s[lo:hi].mean() for s in per["hybrid"]]))
+        thirds.append({"evaluations": [int(lo) + 1, int(hi)], "turpbo": tr, "hybrid": hy})
         print(f"{f'{lo + 1}-{hi}':>24} {tr:10.4f} {hy:10.4f} {hy / tr:7.2f}")
     tr_all = float(np.mean([s[:n_iter].sum() for s in per["turpbo"]]))
     hy_all = float(np.mean([s[:n_iter].sum() for s in per["hybrid"]]))
@@ -109,6 +128,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hybrid global asks: {len(global_s)}, mean {np.mean(global_s):.4f} s")
     if local_s:
         print(f"hybrid local asks:  {len(local_s)}, mean {np.mean(local_s):.4f} s")
+    if args.out is not None:
+        shown = ["python", "-m", "localpbo_core.benchmarks.hybrid_compute"]
+        doc = {
+            "command": shlex.join(shown + (list(argv) if argv is not None else sys.argv[1:])),
+            "machine": f"{os.cpu_count()} cores, {platform.system()} {platform.machine()}",
+            "date": datetime.now(UTC).strftime("%Y-%m-%d"),
+            "seconds": wall,
+            "problem": args.problem,
+            "seeds": seeds,
+            "algorithm": args.algorithm,
+            "options": options,
+            "iterations": n_iter,
+            "turpbo_seconds_per_run": tr_all,
+            "hybrid_seconds_per_run": hy_all,
+            "ratio": hy_all / tr_all,
+            "thirds": thirds,
+            "local_asks": len(local_s),
+            "global_asks": len(global_s),
+        }
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+        print(out)
     return 0
 
 
