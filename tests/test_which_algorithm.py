@@ -237,6 +237,13 @@ def test_decision_time_verdicts() -> None:
     records.append(_record("hybrid", {}, "c", 2.01))
     assert decision_time_verdict("hybrid", records) == "missed (a 2.00×; c 2.01×)"
     assert decision_time_verdict("hybrid_c0.5", records) == "not measured"
+    gp = _record("hybrid_c0.5", {}, "gp_sample", 1.0) | {
+        "problem_options": {"lengthscale": 0.1, "dim": 32}
+    }
+    assert (
+        decision_time_verdict("hybrid_c0.5", [gp])
+        == "met (gp_sample (dim=32, lengthscale=0.1) 1.00×)"
+    )
 
 
 def test_decision_time_benchmark_writes_its_record(tmp_path: Path) -> None:

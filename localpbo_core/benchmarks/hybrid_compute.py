@@ -9,7 +9,8 @@ hybrid is TuRPBO's plus the handover check (the gradient, its posterior covarian
 Newton steps, the Hessian at the center); a local ask fits the model and takes one step.
 
     python -m localpbo_core.benchmarks.hybrid_compute [--problem hartmann6] [--seeds 0-2]
-        [--algorithm hybrid] [--option KEY=VALUE ...] [--budget N] [--out FILE]
+        [--algorithm hybrid] [--option KEY=VALUE ...] [--problem-options JSON]
+        [--budget N] [--out FILE]
 
 ``--algorithm`` names the hybrid or one of its presets (``hybrid_c0.5``). ``--out FILE``
 also writes the figures, the command, the machine and the date as JSON; the results page
@@ -62,12 +63,18 @@ def _option(text: str) -> tuple[str, object]:
 
 
 def _run(
-    problem: str, algorithm: str, seed: int, options: dict[str, object], budget: int | None
+    problem: str,
+    algorithm: str,
+    seed: int,
+    options: dict[str, object],
+    budget: int | None,
+    problem_options: dict[str, object],
 ) -> tuple[np.ndarray, list[str]]:
     """Per-evaluation decision seconds after the initial design, and the hybrid's modes."""
     settings = RunSettings(
         algorithm=algorithm,
         problem=problem,
+        problem_options=problem_options,
         seed=seed,
         noise_fraction=0.1,
         budget=budget,
@@ -89,6 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--algorithm", default="hybrid", help="the hybrid or one of its presets, e.g. hybrid_c0.5"
     )
     parser.add_argument("--option", type=_option, action="append", default=[])
+    parser.add_argument(
+        "--problem-options", type=json.loads, default={}, help="JSON, e.g. '{\"dim\": 32}'"
+    )
     parser.add_argument("--budget", type=int, default=None, help="default: the paper's")
     parser.add_argument("--out", default=None, help="also write the figures as JSON here")
     args = parser.parse_args(argv)
@@ -102,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for seed in seeds:
         for algorithm in ("turpbo", "hybrid"):
             name, opts = (args.algorithm, options) if algorithm == "hybrid" else ("turpbo", {})
-            secs, modes = _run(args.problem, name, seed, opts, args.budget)
+            secs, modes = _run(args.problem, name, seed, opts, args.budget, args.problem_options)
             per[algorithm].append(secs)
             if algorithm == "hybrid" and len(modes) == len(secs):  # q = 1: one per ask
                 global_s += [s for s, m in zip(secs, modes, strict=True) if m == "global"]
@@ -136,6 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "date": datetime.now(UTC).strftime("%Y-%m-%d"),
             "seconds": wall,
             "problem": args.problem,
+            "problem_options": args.problem_options,
             "seeds": seeds,
             "algorithm": args.algorithm,
             "options": options,

@@ -306,13 +306,20 @@ def _record_label(record: dict[str, Any]) -> str:
     return str(record["algorithm"]) + (f" ({extra})" if extra else "")
 
 
+def _record_problem(record: dict[str, Any]) -> str:
+    """The problem a record measured, with its options if it names any."""
+    options = record.get("problem_options") or {}
+    extra = ", ".join(f"{k}={v}" for k, v in sorted(options.items()))
+    return str(record["problem"]) + (f" ({extra})" if extra else "")
+
+
 def decision_time_verdict(label: str, records: Sequence[dict[str, Any]]) -> str:
     """The decision-time goal for ``label`` (module docstring) from its records: "met" or
     "missed" with each problem's whole-run ratio, or "not measured"."""
     mine = [r for r in records if _record_label(r) == label]
     if not mine:
         return "not measured"
-    ratios = "; ".join(f"{r['problem']} {float(r['ratio']):.2f}×" for r in mine)
+    ratios = "; ".join(f"{_record_problem(r)} {float(r['ratio']):.2f}×" for r in mine)
     worst = max(float(r["ratio"]) for r in mine)
     return f"{'met' if worst <= TIME_BOUND else 'missed'} ({ratios})"
 
