@@ -80,6 +80,11 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
             "GIPBO keeping a step only when it wins its duel",
             accept_step="duel",
         ),
+        "gipbor_gated": _preset(
+            "gipbor",
+            "GIPBOr keeping a step only when it wins its duel",
+            accept_step="duel",
+        ),
     }
 )
 """The presets by label (lower case)."""
