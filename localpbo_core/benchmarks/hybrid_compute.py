@@ -13,7 +13,8 @@ Newton steps, the Hessian at the center); a local ask fits the model and takes o
         [--budget N] [--out FILE]
 
 ``--algorithm`` names the hybrid or one of its presets (``hybrid_c0.5``). ``--out FILE``
-also writes the figures, the command, the machine and the date as JSON; the results page
+also writes the figures (the ask counts over all seeds), the command, the machine and the
+date as JSON; the results page
 reads every ``docs/diagnosis/hybrid_compute*.json`` for the hybrid's decision-time goal
 (:mod:`localpbo_core.experiments.beyond`). Asserts nothing.
 """
