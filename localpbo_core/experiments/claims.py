@@ -572,14 +572,41 @@ def _no_warm_start_pairs(groups: Sequence[Group]) -> list[tuple[Group, Group]]:
     return pairs
 
 
-def _cold_tally(judged: Sequence[tuple[int, int, str]]) -> Outcome:
+def _cold_missing(groups: Sequence[Group], needed: Sequence[str]) -> list[str]:
+    """What a claim on policy search without warm start lacks: per task, the task itself when
+    none of its runs are stored, else those of ``needed`` that the paper ran there
+    (:data:`_PAPER_POLICY_ALGORITHMS`) and that have no complete group."""
+    out = []
+    for task in _POLICY_DIMS:
+        cold = _find(groups, "policy_no_warm_start", task)
+        if cold is None:
+            out.append(task)
+            continue
+        absent = [a for a in needed if a in _PAPER_POLICY_ALGORITHMS[task] and a not in cold.best]
+        if absent:
+            out.append(f"{task}: {', '.join(absent)}")
+    return out
+
+
+def _cold_tally(
+    groups: Sequence[Group], judged: Sequence[tuple[int, int, str]], needed: Sequence[str]
+) -> Outcome:
     """The outcome of a claim on policy search without warm start from each task's (holds, out
-    of, note): the notes joined, the counts summed into the verdict."""
+    of, note): the notes joined, the counts summed into the verdict. A claim about both tasks
+    and the algorithms ``needed`` holds ("yes") only when all of them ran: while some did not
+    (:func:`_cold_missing`, named in the note), agreement on what ran is "partly"."""
+    missing = _cold_missing(groups, needed)
     if not judged:
         return Outcome("policy search without warm start not run", "not run")
     ok = sum(holds for holds, _, _ in judged)
     total = sum(out_of for _, out_of, _ in judged)
-    return Outcome("; ".join(note for _, _, note in judged), _verdict(ok, total))
+    verdict = _verdict(ok, total)
+    notes = [note for _, _, note in judged]
+    if missing:
+        notes.append(f"not run: {'; '.join(missing)}")
+        if verdict == "yes":
+            verdict = "partly"
+    return Outcome("; ".join(notes), verdict)
 
 
 def _local_less_reliable_cold(groups: Sequence[Group]) -> Outcome:
@@ -589,7 +616,7 @@ def _local_less_reliable_cold(groups: Sequence[Group]) -> Outcome:
         lower = [a for a in both if cold.mean("best", a) < warm.mean("best", a)]
         note = f"{cold.problem}: lower without warm start {len(lower)} of {len(both)}"
         judged.append((len(lower), len(both), note))
-    return _cold_tally(judged)
+    return _cold_tally(groups, judged, LOCAL)
 
 
 def _gradient_below_random_cold(groups: Sequence[Group]) -> Outcome:
@@ -606,7 +633,7 @@ def _gradient_below_random_cold(groups: Sequence[Group]) -> Outcome:
         ]
         note = f"{cold.problem}: degraded and below Sobol {len(worse)} of {len(both)}"
         judged.append((len(worse), len(both), note))
-    return _cold_tally(judged)
+    return _cold_tally(groups, judged, (*DERIVATIVE, "sobol"))
 
 
 def _gradient_cumulative_vs_glisp_cold(groups: Sequence[Group]) -> Outcome:
@@ -619,7 +646,7 @@ def _gradient_cumulative_vs_glisp_cold(groups: Sequence[Group]) -> Outcome:
             if g.not_below("cumulative", a, "glisp") and g.mean("best", "glisp") > g.mean("best", a)
         ]
         judged.append((len(good), len(mine), f"{g.problem}: {len(good)} of {len(mine)}"))
-    return _cold_tally(judged)
+    return _cold_tally(groups, judged, (*DERIVATIVE, "glisp"))
 
 
 def _turpbo_cold(groups: Sequence[Group]) -> Outcome:
@@ -631,7 +658,7 @@ def _turpbo_cold(groups: Sequence[Group]) -> Outcome:
         if g.problem == "hopper" and g.has("sobol"):
             not_better = g.not_below("best", "sobol", "turpbo")
             judged.append((not_better, 1, f"hopper: {'not ' if not_better else ''}above Sobol"))
-    return _cold_tally(judged)
+    return _cold_tally(groups, judged, ("turpbo", "sobol"))
 
 
 # ---------------------------------------------------------------------- App. D.4
