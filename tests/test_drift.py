@@ -59,7 +59,8 @@ def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
 
     table = ROOT / "docs" / "results" / "stored_code.json"
     runs = stored_by_commit(table)
-    assert len(runs) >= 2000
+    # most stored runs predate code blocks; re-runs (sweep --rerun-changed) carry their own
+    assert len(runs) >= 1500
     doc = json.loads(table.read_text())
     shallow = subprocess.run(
         ["git", "-C", str(ROOT), "rev-parse", "--is-shallow-repository"],
