@@ -47,7 +47,8 @@ from localpbo_core.experiments.paper import (
     problem_key,
 )
 from localpbo_core.experiments.spec import RunLabels
-from localpbo_core.provenance import CODE_CHANGED, CODE_NONE
+from localpbo_core.provenance import CODE_CHANGED, CODE_NONE, ProvenanceTables
+from localpbo_core.provenance import code_state as _code_state
 from localpbo_core.run_documents import run_files
 from localpbo_core.settings import SettingError
 
@@ -75,7 +76,6 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     dates the runs stored without a code version by the commit that stored them, its
     ``equivalent_code.json`` says which code changes left traces unchanged
     (:mod:`localpbo_core.experiments.stored_code`, :mod:`localpbo_core.experiments.drift`)."""
-    from localpbo_core.provenance import ProvenanceTables
     from localpbo_core.sweep import read_run
 
     paths = list(paths)
@@ -265,9 +265,7 @@ def code_state(run: StoredRun) -> str:
     codes on one machine gave the same trace bit for bit) or
     :data:`~localpbo_core.provenance.CODE_CHANGED`. A run stored without a code version is
     judged by the commit that stored it (:func:`localpbo_core.provenance.code_state`)."""
-    from localpbo_core.provenance import code_state as state
-
-    return state(str(run.settings["algorithm"]), run.code)
+    return _code_state(str(run.settings["algorithm"]), run.code)
 
 
 def code_cell(runs: Sequence[StoredRun]) -> str:

@@ -134,8 +134,11 @@ def read_run(path: Path) -> dict[str, Any]:
     return doc
 
 
-def is_finished(out: Path, plan: PlannedRun) -> bool:
-    """True if ``plan``'s file exists and holds the same settings.
+def stored_state(out: Path, plan: PlannedRun, tables: ProvenanceTables | None = None) -> str:
+    """``"finished"`` if ``plan``'s file exists and holds the same settings, ``"stale"`` if
+    it does but, with ``tables`` given, was made by code that today's is not known to
+    reproduce (module docstring, "Re-run"), else ``"missing"`` (an unreadable file too: it
+    runs again). The file is read once.
 
     Raises:
         SettingError: the file holds a run with other settings (field ``--out``).
@@ -144,23 +147,18 @@ def is_finished(out: Path, plan: PlannedRun) -> bool:
 
     path = run_path(out, plan)
     if not path.exists():
-        return False
+        return "missing"
     try:
         doc = read_run(path)
-    except (OSError, ValueError, EOFError):  # unreadable: run it again
-        return False
+    except (OSError, ValueError, EOFError):
+        return "missing"
     if doc.get("settings") != settings_document(plan.settings):
         raise SettingError(
             "--out", f"{path} holds run {plan.run_id} with other settings; use another --out"
         )
-    return True
-
-
-def is_stale(out: Path, plan: PlannedRun, tables: ProvenanceTables) -> bool:
-    """True if the stored run of ``plan`` (finished, :func:`is_finished`) was made by code
-    that today's is not known to reproduce (module docstring, "Re-run")."""
-    path = run_path(out, plan)
-    return run_code_state(path, read_run(path), tables) in STALE_STATES
+    if tables is not None and run_code_state(path, doc, tables) in STALE_STATES:
+        return "stale"
+    return "finished"
 
 
 def rerun_tables(out: Path) -> ProvenanceTables:
@@ -351,12 +349,12 @@ def sweep(
     tables = rerun_tables(out) if rerun_changed else None
     stale: set[str] = set()
     for plan in plans:
-        if is_finished(out, plan):
-            if tables is not None and is_stale(out, plan, tables):
-                stale.add(plan.run_id)
-                todo.append(plan)
-            else:
-                result.skipped.append(plan.run_id)
+        state = stored_state(out, plan, tables)
+        if state == "stale":
+            stale.add(plan.run_id)
+            todo.append(plan)
+        elif state == "finished":
+            result.skipped.append(plan.run_id)
         elif index and (source := index.find(plan)) is not None:
             copies.append((plan, source))
         else:
@@ -569,14 +567,13 @@ def format_dry_run(
     index = ReuseIndex(reuse)
     tables = rerun_tables(out) if rerun_changed else None
     for plan in plans:
-        finished = is_finished(out, plan)
-        rerun = finished and tables is not None and is_stale(out, plan, tables)
-        if finished and not rerun:
+        stored = stored_state(out, plan, tables)
+        if stored == "finished":
             state = "finished"
-        elif not finished and index and index.find(plan) is not None:
+        elif stored == "missing" and index and index.find(plan) is not None:
             state = "reuse"
         elif max_runs is None or started < max_runs:
-            state, started = "will rerun" if rerun else "will run", started + 1
+            state, started = "will rerun" if stored == "stale" else "will run", started + 1
         else:
             state = "later"
         counts[state] += 1

@@ -299,18 +299,20 @@ def read_decision_times(folder: Path = DECISION_TIMES) -> list[dict[str, Any]]:
     return out
 
 
+def _named(name: object, options: dict[str, Any] | None, sep: str) -> str:
+    """``name``, with its options (sorted, ``key=value`` joined by ``sep``) in brackets."""
+    extra = sep.join(f"{k}={v}" for k, v in sorted((options or {}).items()))
+    return str(name) + (f" ({extra})" if extra else "")
+
+
 def _record_label(record: dict[str, Any]) -> str:
     """The label a record measured: its ``--algorithm``, with explicit options appended."""
-    options = record.get("options") or {}
-    extra = ",".join(f"{k}={v}" for k, v in sorted(options.items()))
-    return str(record["algorithm"]) + (f" ({extra})" if extra else "")
+    return _named(record["algorithm"], record.get("options"), ",")
 
 
 def _record_problem(record: dict[str, Any]) -> str:
     """The problem a record measured, with its options if it names any."""
-    options = record.get("problem_options") or {}
-    extra = ", ".join(f"{k}={v}" for k, v in sorted(options.items()))
-    return str(record["problem"]) + (f" ({extra})" if extra else "")
+    return _named(record["problem"], record.get("problem_options"), ", ")
 
 
 def decision_time_verdict(label: str, records: Sequence[dict[str, Any]]) -> str:
