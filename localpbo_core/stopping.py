@@ -169,12 +169,25 @@ def exit_now(code: int) -> NoReturn:
     the interpreter's finalization: whatever the process held is closed by then, and skipping
     finalization skips the DDS library's static destructors, which are known to hang now and
     then at exit."""
-    import ctypes
-
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError, RuntimeError):  # closed, or being written when signalled
             pass
-    ctypes.CDLL(None).fflush(None)  # rcutils may log to a buffered C stdout
+    _flush_c_stdio()
     os._exit(code)
+
+
+def _flush_c_stdio() -> None:
+    """Flush C's stdio buffers (rcutils may log to a buffered C stdout).
+
+    A signal can arrive in the middle of an import of ``ctypes`` or of a module it needs
+    (``struct``): then ``ctypes`` cannot be imported, and nothing was written through C's
+    stdio yet (rcutils logs only once a node runs), so there is nothing to flush.
+    """
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (ImportError, AttributeError):
+        pass

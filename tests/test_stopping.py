@@ -81,3 +81,17 @@ print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)
     done = run(script)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["True", "True", "True", "SIGTERM", "False"]
+
+
+@pytest.mark.parametrize("partial", ["ctypes", "struct"])
+def test_guard_stops_cleanly_inside_an_import_of_what_it_flushes_with(partial: str) -> None:
+    # signalled while ``ctypes`` (or ``struct``, which ctypes imports) is half imported: the
+    # module is in sys.modules without its names; the stop is still clean, with its own code
+    body = (
+        "import types\n"
+        "sys.modules.pop('ctypes', None)\n"
+        f"sys.modules[{partial!r}] = types.ModuleType({partial!r})"
+    )
+    done = run(GUARDED.format(body=body, sig="SIGINT"))
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "probe: stopped by SIGINT while starting\n"
