@@ -454,12 +454,39 @@ def test_recorder_holds_a_bounded_backlog_before_the_run_config(
     early = [(CANDIDATE, theta_message(100, candidate=i)) for i in range(5)]  # ~900 B each
     flood(ros, recorder, early, recorder_handled)
     assert len(recorder._held) == 3 and recorder._held_bytes <= 3000
-    assert recorder.counters["foreign_before_run"] == 2  # beyond the bound: foreign at once
+    assert recorder.counters["foreign_before_run"] == 2  # beyond the bound: the oldest out
     flood(ros, recorder, [(RUN_CONFIG, wide_config(100).encode())], recorder_handled)
     assert recorder.counters["recorded"] == 4 and not recorder._held  # config + the 3 held
     recorder.close()
     kept = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
-    assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == [0, 1, 2]
+    assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == [2, 3, 4]
+    foreign = read_messages(path, topics=["/localpbo/foreign/candidate"])
+    assert [CandidateMsg.decode(m.message).candidate_id for m in foreign] == [0, 1]
+
+
+@pytest.mark.parametrize("hold_bytes", [0, 3000])
+def test_a_run_starting_inside_a_flood_keeps_its_first_candidate(
+    ros: Any, tmp_path: Any, monkeypatch: Any, hold_bytes: int
+) -> None:
+    """The hold is full of earlier traffic (or holds nothing) when the run's config and first
+    candidate arrive together; the executor serves the candidate topic first, yet candidate 0
+    is recorded as the run's."""
+    import localpbo_ros.recorder_node as recorder_module
+
+    monkeypatch.setattr(recorder_module, "HOLD_BYTES", hold_bytes)
+    path = tmp_path / "inside.mcap"
+    recorder = start_recorder(ros, path, [CANDIDATE, RUN_CONFIG])
+    earlier = [(CANDIDATE, theta_message(100, candidate=10**6 + i)) for i in range(8)]
+    flood(ros, recorder, earlier, recorder_handled)
+    assert recorder.counters["foreign_before_run"] == (8 if hold_bytes == 0 else 5)
+    target = recorder_handled(recorder) + 2
+    ros.publish(CANDIDATE, theta_message(100, candidate=0))
+    ros.publish(RUN_CONFIG, wide_config(100).encode())
+    time.sleep(0.5)  # both wait in the recorder's subscriptions before it spins again
+    assert ros.spin_until(lambda: recorder_handled(recorder) == target, 20)
+    recorder.close()
+    kept = [CandidateMsg.decode(m.message) for m in read_messages(path, topics=[CANDIDATE.name])]
+    assert [c.candidate_id for c in kept if isinstance(c, CandidateMsg)] == [0]
 
 
 def test_forged_speculative_candidates_cost_a_bounded_number_of_episodes(ros: Any) -> None:

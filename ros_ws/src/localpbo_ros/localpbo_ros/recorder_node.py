@@ -14,9 +14,11 @@ The run's own messages are never crowded out. Each message is triaged
 written on its topic; foreign traffic (another run, malformed, ids out of range, a
 conflicting config) is written under ``/localpbo/foreign/<topic>`` and only up to
 ``max_foreign_bytes`` (at most half of ``max_bag_bytes``), so the run always keeps the rest of
-the cap. Messages that arrive before any run config are held (at most ``RECORD_DEPTH``
-messages, ``HOLD_BYTES`` bytes) and triaged when it arrives; beyond, and on close, they count
-as foreign (``before_run``).
+the cap. A message that arrives before any run config first makes the recorder take a run
+config already waiting in its subscription (the executor serves the candidate topic before the
+config topic); without one it is held (the newest ``RECORD_DEPTH`` messages, ``HOLD_BYTES``
+bytes) and triaged when the config arrives; the oldest beyond the bound, and those held on
+close, count as foreign (``before_run``).
 
 Bounded under hostile traffic: a message longer than ``max_message_bytes`` (default twice the
 largest message any decoder accepts, ``localpbo_msgs_py.limits.MAX_MESSAGE_BYTES``) is not
@@ -142,6 +144,7 @@ class RecorderNode(SuiteNode):
         self.foreign_bytes = 0
         self._held: list[tuple[TopicSpec, bytes, int]] = []
         self._held_bytes = 0
+        self._taking_config = False
         self.writer.before_close(self._finish)
         self._subs = [
             self.create_subscription(
@@ -171,13 +174,10 @@ class RecorderNode(SuiteNode):
                 return
             now = time.time_ns()
             reason = self._triage(spec, data)
-            if (
-                reason == BEFORE_RUN
-                and len(self._held) < RECORD_DEPTH
-                and self._held_bytes + size <= HOLD_BYTES
-            ):
-                self._held.append((spec, data, now))
-                self._held_bytes += size
+            if reason == BEFORE_RUN and self._take_run_config():
+                reason = self._triage(spec, data)  # the config came in beside this message
+            if reason == BEFORE_RUN and size <= HOLD_BYTES:
+                self._hold(spec, data, now)
                 return
             self._write(spec, data, reason, now)
             config = self.filter.config
@@ -189,6 +189,32 @@ class RecorderNode(SuiteNode):
                     self._write(h_spec, h_data, self._triage(h_spec, h_data), h_time)
 
         return record
+
+    def _hold(self, spec: TopicSpec, data: bytes, log_time: int) -> None:
+        """Hold a message that came before any run config; beyond the bounds the oldest held
+        go out as foreign (``before_run``): a run's first messages come just before or after
+        its config, so the newest are the ones a coming config may claim."""
+        self._held.append((spec, data, log_time))
+        self._held_bytes += len(data)
+        while len(self._held) > RECORD_DEPTH or self._held_bytes > HOLD_BYTES:
+            old_spec, old_data, old_time = self._held.pop(0)
+            self._held_bytes -= len(old_data)
+            self._write(old_spec, old_data, BEFORE_RUN, old_time)
+
+    def _take_run_config(self) -> bool:
+        """Take the run configs already waiting in their subscription, ahead of the executor's
+        order (it serves the candidate topic first): a run's first candidate and its config
+        often wait side by side. True when a run config is known afterwards."""
+        if self._taking_config:
+            return False
+        self._taking_config = True
+        try:
+            for spec, sub in zip(self.topics, self._subs, strict=True):
+                if spec.name == RUN_CONFIG.name:
+                    self._take_waiting(spec, sub, time.monotonic() + DRAIN_S)
+        finally:
+            self._taking_config = False
+        return self.filter.config is not None
 
     def _triage(self, spec: TopicSpec, data: bytes) -> str | None:
         try:
@@ -258,19 +284,26 @@ class RecorderNode(SuiteNode):
         """Take and record the messages waiting in the subscriptions, for at most ``seconds``;
         returns how many were taken."""
         end = time.monotonic() + seconds
+        return sum(
+            self._take_waiting(spec, sub, end)
+            for spec, sub in zip(self.topics, self._subs, strict=True)
+        )
+
+    def _take_waiting(self, spec: TopicSpec, sub: Any, end: float) -> int:
+        """Take and record the messages waiting in one subscription until ``end``
+        (``time.monotonic``); returns how many were taken."""
+        record = self._callback(spec)
         taken = 0
-        for spec, sub in zip(self.topics, self._subs, strict=True):
-            record = self._callback(spec)
-            while time.monotonic() < end:
-                try:
-                    with sub.handle:
-                        got = sub.handle.take_message(sub.msg_type, sub.raw)
-                except Exception:  # the subscription is already destroyed
-                    break
-                if got is None:
-                    break
-                record(got[0])
-                taken += 1
+        while time.monotonic() < end:
+            try:
+                with sub.handle:
+                    got = sub.handle.take_message(sub.msg_type, sub.raw)
+            except Exception:  # the subscription is already destroyed
+                break
+            if got is None:
+                break
+            record(got[0])
+            taken += 1
         return taken
 
     def close(self) -> None:
