@@ -161,6 +161,49 @@ def test_goal_not_judgeable_without_every_problem() -> None:
     assert none == ["not judgeable (run on 0 of 18)"] * 4
 
 
+def test_goal_missed_early_when_the_missing_problems_cannot_reach_it() -> None:
+    """A label with Sobol's values (below TuRPBO everywhere), run on 17 of 18: even ahead on
+    the missing problem, it reaches at most 1 of the "at least" bounds; the "at most" goal stays
+    open (more problems can only take significances away)."""
+    runs = fixture_runs()
+    runs += [
+        _run(
+            _beyond(r.spec),
+            r.problem_label,
+            "hybrid_c0.5",
+            r.seed,
+            float(r.best_seen[-1]),
+            float(r.cumulative[-1]),
+            algorithm="hybrid",
+        )
+        for r in runs
+        if r.algorithm_label == "sobol" and r.problem_label != "hartmann6"
+    ]
+    table = standings(main_groups(runs, 0.05), 0.05)
+    verdicts = [v for _, v in goal_verdicts(table, "hybrid_c0.5")]
+    assert verdicts == [
+        "missed by at least 15 (run on 17 of 18, so far 0)",
+        "missed by at least 2 (run on 17 of 18, so far 0)",
+        "not judgeable (run on 17 of 18, so far 17)",
+        "missed by at least 11 (run on 17 of 18, so far 0)",
+    ]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_one_more_hypothesis_never_lowers_a_holm_adjusted_p(seed: int) -> None:
+    """The fact the early "missed" rests on, against the implementation: adding a p-value to
+    Holm's correction leaves every other adjusted p-value at least as large."""
+    import numpy as np
+
+    from localpbo_core.experiments.comparisons import holm
+
+    rng = np.random.default_rng(seed)
+    p = list(rng.uniform(0.0, 0.2, size=int(rng.integers(1, 18))) ** 2)
+    extra = float(rng.uniform(0.0, 0.2) ** 2)
+    before, after = holm(p), holm([*p, extra])
+    assert all(a >= b for a, b in zip(after, before, strict=False))
+
+
 def test_section_renders() -> None:
     runs = fixture_runs()
     runs += [
