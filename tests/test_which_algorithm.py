@@ -242,6 +242,14 @@ def test_section_renders() -> None:
         in text
     )
     assert "1.9 s hybrid per run, 60 evaluations after the initial design, seeds 0, 1" in text
+    assert "seeds 0, 1; local steps 30 of 120 asks (25 %);" in text
+    # equal values everywhere (10 <= i < 14 in the fixture): the same runs as TuRPBO's
+    same = "; ".join(
+        f"{s}/{p} {10 if 10 <= i < 14 else 0} of 10" for i, (s, p) in enumerate(MAIN_PROBLEMS)
+    )
+    assert "Runs of hybrid with TuRPBO's value at every evaluation (the same seed; " in text
+    assert f"candidates): {same}." in text
+    assert "local steps 0 of 120 asks (0 %): TuRPBO's candidates throughout" in text
     assert "hybrid (confidence=2) per run" not in text
     # Sobol's values under another label of the hybrid: tied with Sobol, 18 below TuRPBO
     assert "| hybrid_c0.5 | not" not in text
@@ -263,6 +271,8 @@ def _record(algorithm: str, options: dict[str, Any], problem: str, ratio: float)
         "algorithm": algorithm,
         "options": options,
         "iterations": 60,
+        "local_asks": 0 if problem == "levy32" else 30,
+        "global_asks": 120 if problem == "levy32" else 90,
         "turpbo_seconds_per_run": 1.0,
         "hybrid_seconds_per_run": ratio,
         "ratio": ratio,

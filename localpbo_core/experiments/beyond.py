@@ -71,6 +71,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from localpbo_core.experiments.claims import Group
 from localpbo_core.experiments.comparisons import holm, paired_wilcoxon
 from localpbo_core.experiments.paper import PAPER_SEEDS
@@ -162,6 +164,12 @@ def main_groups(runs: Sequence[StoredRun], alpha: float) -> list[Group]:
     :data:`~localpbo_core.experiments.paper.PAPER_SEEDS` (module docstring)."""
     from localpbo_core.experiments.claims import groups_of
 
+    return [g for merged in main_runs(runs).values() for g in groups_of(merged, alpha)]
+
+
+def main_runs(runs: Sequence[StoredRun]) -> dict[tuple[str, str], list[StoredRun]]:
+    """The merged runs of each main problem with runs of its paper spec (module docstring),
+    seen as runs of the paper spec, keyed by ``(spec, label)``."""
     seeds = set(PAPER_SEEDS)
     wanted = dict.fromkeys(label for _, label in MAIN_PROBLEMS)
     candidates = [
@@ -172,7 +180,7 @@ def main_groups(runs: Sequence[StoredRun], alpha: float) -> list[Group]:
         and r.problem_label in wanted
         and (r.spec.startswith(BEYOND_PREFIX) or (r.spec, r.problem_label) in MAIN_PROBLEMS)
     ]
-    groups = []
+    out: dict[tuple[str, str], list[StoredRun]] = {}
     for spec, label in MAIN_PROBLEMS:
         home = [r for r in candidates if r.spec == spec and r.problem_label == label]
         if not home:
@@ -186,14 +194,32 @@ def main_groups(runs: Sequence[StoredRun], alpha: float) -> list[Group]:
             if source == r.spec:
                 members.append(r)
         # seen as runs of the paper spec: groups_of groups by spec and problem label
-        merged = [
+        out[(spec, label)] = [
             replace(r, spec=spec)
             for _, members in chosen.values()
             if {r.seed for r in members} == seeds
             for r in members
         ]
-        groups += groups_of(merged, alpha)
-    return groups
+    return out
+
+
+def same_as_reference(runs: Sequence[StoredRun], label: str) -> dict[str, tuple[int, int]]:
+    """Per main problem (``spec/label``) where ``label`` and TuRPBO both ran: how many of
+    ``label``'s runs have TuRPBO's run's value at every evaluation (a hybrid that never took
+    a local step asks TuRPBO's candidates), as ``(same, seeds)``."""
+    out = {}
+    for (spec, problem), merged in main_runs(runs).items():
+        mine = {r.seed: r for r in merged if r.algorithm_label == label}
+        theirs = {r.seed: r for r in merged if r.algorithm_label == REFERENCE}
+        if not mine or not theirs:
+            continue
+        same = sum(
+            np.array_equal(run.cumulative, theirs[seed].cumulative)
+            for seed, run in mine.items()
+            if seed in theirs
+        )
+        out[f"{spec}/{problem}"] = (same, len(mine))
+    return out
 
 
 def _reference_tests(groups: Sequence[Group], algorithm: str, alpha: float) -> tuple[int, int]:
@@ -352,6 +378,15 @@ def decision_time_verdict(label: str, records: Sequence[dict[str, Any]]) -> str:
     return f"{'met' if worst <= TIME_BOUND else 'missed'} ({ratios})"
 
 
+def _local_share(record: dict[str, Any]) -> str:
+    """How many of a record's hybrid asks were local steps; with none, the hybrid asked
+    TuRPBO's candidates throughout (the same seeds give the same runs)."""
+    local = int(record["local_asks"])
+    asks = local + int(record["global_asks"])
+    share = f"local steps {local} of {asks} asks ({100.0 * local / max(asks, 1):.0f} %)"
+    return share if local else f"{share}: TuRPBO's candidates throughout"
+
+
 def runnable(label: str) -> bool:
     """``label`` names a registered algorithm or a preset (:mod:`localpbo_core.presets`), so
     ``localpbo run --algorithm`` and ``DEFAULT_ALGORITHM`` accept it."""
@@ -461,6 +496,16 @@ def which_algorithm_section(
         verdicts = goal_verdicts(table, h)
         cells = [v for _, v in verdicts] + [decision_time_verdict(h, records)]
         lines.append(f"| {h} | " + " | ".join(cells) + " |")
+    for h in hybrids:
+        same = same_as_reference(runs, h)
+        if same:
+            lines += [
+                "",
+                f"Runs of {h} with TuRPBO's value at every evaluation (the same seed; until its "
+                "first local step the hybrid asks TuRPBO's candidates): "
+                + "; ".join(f"{p} {k} of {n}" for p, (k, n) in same.items())
+                + ".",
+            ]
     measured = [r for r in records if _record_label(r) in hybrids]
     if measured:
         lines += ["", "Decision-time records (`docs/diagnosis/`):", ""]
@@ -469,7 +514,7 @@ def which_algorithm_section(
             f"{float(r['turpbo_seconds_per_run']):.3g} s TuRPBO, "
             f"{float(r['hybrid_seconds_per_run']):.3g} s {_record_label(r)} per run, "
             f"{r['iterations']} evaluations after the initial design, seeds "
-            f"{', '.join(str(x) for x in r['seeds'])};"
+            f"{', '.join(str(x) for x in r['seeds'])}; {_local_share(r)};"
             for r in measured
         ]
         lines[-1] = lines[-1][:-1] + "."
