@@ -47,6 +47,12 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
             "never reached on 3 of 10 seeds)",
             confidence=0.5,
         ),
+        "hybrid_local": _preset(
+            "hybrid",
+            "the hybrid handing over whenever its cooldown allows (handover_length at the trust "
+            "region's largest side): local steps first, TuRPBO's region after a stall",
+            handover_length=1.6,
+        ),
         "prefsqp_radius": _preset(
             "prefsqp",
             "PrefSQP sampling its gradient duels at a radius relative to the lengthscale",
