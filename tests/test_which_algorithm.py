@@ -92,6 +92,24 @@ def fixture_runs() -> list[StoredRun]:
     return runs
 
 
+def _sobol_as_hybrid_c05(runs: list[StoredRun], without: str = "") -> list[StoredRun]:
+    """Sobol's values under the hybrid's label ``hybrid_c0.5`` in the beyond specs (all main
+    problems but ``without``)."""
+    return [
+        _run(
+            _beyond(r.spec),
+            r.problem_label,
+            "hybrid_c0.5",
+            r.seed,
+            float(r.best_seen[-1]),
+            float(r.cumulative[-1]),
+            algorithm="hybrid",
+        )
+        for r in runs
+        if r.algorithm_label == "sobol" and r.problem_label != without
+    ]
+
+
 def _by_name(table: list[Standing]) -> dict[str, Standing]:
     return {s.algorithm: s for s in table}
 
@@ -166,19 +184,7 @@ def test_goal_missed_early_when_the_missing_problems_cannot_reach_it() -> None:
     the missing problem, it reaches at most 1 of the "at least" bounds; the "at most" goal stays
     open (more problems can only take significances away)."""
     runs = fixture_runs()
-    runs += [
-        _run(
-            _beyond(r.spec),
-            r.problem_label,
-            "hybrid_c0.5",
-            r.seed,
-            float(r.best_seen[-1]),
-            float(r.cumulative[-1]),
-            algorithm="hybrid",
-        )
-        for r in runs
-        if r.algorithm_label == "sobol" and r.problem_label != "hartmann6"
-    ]
+    runs += _sobol_as_hybrid_c05(runs, without="hartmann6")
     table = standings(main_groups(runs, 0.05), 0.05)
     verdicts = [v for _, v in goal_verdicts(table, "hybrid_c0.5")]
     assert verdicts == [
@@ -206,19 +212,7 @@ def test_one_more_hypothesis_never_lowers_a_holm_adjusted_p(seed: int) -> None:
 
 def test_section_renders() -> None:
     runs = fixture_runs()
-    runs += [
-        _run(
-            _beyond(r.spec),
-            r.problem_label,
-            "hybrid_c0.5",
-            r.seed,
-            float(r.best_seen[-1]),
-            float(r.cumulative[-1]),
-            algorithm="hybrid",
-        )
-        for r in runs
-        if r.algorithm_label == "sobol"
-    ]
+    runs += _sobol_as_hybrid_c05(runs)
     records = [
         _record("hybrid", {}, "hartmann6", 1.9),
         _record("hybrid", {}, "levy32", 0.8),
