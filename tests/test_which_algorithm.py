@@ -323,3 +323,23 @@ def test_default_algorithm_is_the_evidence_choice() -> None:
         f"{DEFAULT_ALGORITHM!r}: change localpbo_core/settings.py (docs/RESULTS.md, "
         "'Which algorithm to run')"
     )
+
+
+def test_the_algorithms_page_reads_the_local_steps_off_the_records() -> None:
+    """docs/algorithms.md, "Where the hybrid's goal stands": no local step on Levy 32,
+    Styblinski-Tang 64 and Hopper, a handful (under 5 %) on the 32-D GP path, in the default
+    hybrid's decision-time records."""
+    from localpbo_core.experiments.beyond import read_decision_times
+
+    text = " ".join((ROOT / "docs" / "algorithms.md").read_text().split())
+    assert (
+        "show no local step at all on Levy 32, Styblinski-Tang 64 and Hopper, and a handful on "
+        "the 32-D GP path" in text
+    )
+    share = {
+        r["problem"]: r["local_asks"] / (r["local_asks"] + r["global_asks"])
+        for r in read_decision_times()
+        if r["algorithm"] == "hybrid" and not r.get("options")
+    }
+    assert share["levy32"] == share["styblinskitang64"] == share["hopper"] == 0
+    assert 0 < share["gp_sample"] < 0.05
