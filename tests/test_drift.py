@@ -131,3 +131,32 @@ def test_every_optimizer_module_belongs_to_an_algorithm_digest() -> None:
     }
     missing = sorted(p.name for p in folder.glob("*.py") if p.name not in covered | {"__init__.py"})
     assert missing == []
+
+
+def test_a_copy_is_dated_by_its_source_as_it_was_copied() -> None:
+    """A copy (``sweep --reuse``) whose source was re-run since keeps the storing commit of the
+    source's bytes it copied, not the re-run's (its trace is the old one)."""
+    import subprocess
+
+    from localpbo_core.provenance import ROOT, stored_by_commit
+    from localpbo_core.sweep import read_run
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True
+        ).stdout.strip()
+
+    if git("rev-parse", "--is-shallow-repository") == "true":
+        pytest.skip("a shallow clone holds too little history")
+    runs = stored_by_commit(ROOT / "docs" / "results" / "stored_code.json")
+    copy = ROOT / "docs/results/beyond_hybrid/runs/styblinskitang64__turpbo__seed0.json.gz"
+    source = "docs/results/synthetic/runs/styblinskitang64__turpbo__seed0.json.gz"
+    assert "code" in read_run(ROOT / source)  # re-run with today's code
+    assert read_run(copy)["run"]["reused_from"] == "synthetic/styblinskitang64__turpbo__seed0"
+    commit, _ = runs[copy]
+    rel = copy.relative_to(ROOT).as_posix()
+    copied_at = git("log", "--diff-filter=A", "--format=%H", "--", rel).splitlines()[-1]
+    old_blob = git("rev-parse", f"{copied_at}:{source}")
+    added = git("show", "--raw", "--no-abbrev", "--format=", commit)
+    assert any(line.split()[3] == old_blob for line in added.splitlines())
+    assert old_blob != git("rev-parse", f"HEAD:{source}")

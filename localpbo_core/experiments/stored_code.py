@@ -54,10 +54,9 @@ def _git(root: Path, *args: str, data: bytes | None = None) -> bytes:
     ).stdout
 
 
-def storing_commits(root: Path, paths: Sequence[str]) -> dict[str, str]:
-    """``{path: commit}``: for each committed file in ``paths`` (relative to ``root``), the
-    oldest commit that added or rewrote a file with the same bytes anywhere (module
-    docstring)."""
+def first_commits(root: Path) -> dict[str, str]:
+    """``{blob: commit}``: for each file content ever committed, the oldest commit that added
+    or rewrote a file with those bytes anywhere."""
     first: dict[str, str] = {}
     log = _git(
         root, "log", "--diff-filter=AM", "--raw", "--no-abbrev", "--no-renames", "--format=C %H"
@@ -69,6 +68,16 @@ def storing_commits(root: Path, paths: Sequence[str]) -> dict[str, str]:
         elif line.startswith(":"):
             blob = line.split()[3]  # the new side of an added or modified file
             first[blob] = commit  # the log runs newest first: the last one seen is oldest
+    return first
+
+
+def storing_commits(
+    root: Path, paths: Sequence[str], first: dict[str, str] | None = None
+) -> dict[str, str]:
+    """``{path: commit}``: for each committed file in ``paths`` (relative to ``root``), the
+    oldest commit that added or rewrote a file with the same bytes anywhere (module
+    docstring); ``first``: :func:`first_commits`, when the caller has it."""
+    first = first_commits(root) if first is None else first
     out: dict[str, str] = {}
     for line in _git(root, "ls-files", "-s", "--", *paths).decode().splitlines():
         meta, path = line.split("\t", 1)
@@ -115,6 +124,15 @@ def code_at(root: Path, commit: str, algorithms: Iterable[str]) -> dict[str, Any
     }
 
 
+def _blob_at(root: Path, commit: str, path: str) -> str:
+    """The blob of ``path`` at ``commit`` (empty when the commit has no such file)."""
+    done = subprocess.run(
+        ["git", "-C", str(root), "rev-parse", "--verify", "--quiet", f"{commit}:{path}"],
+        capture_output=True,
+    )
+    return done.stdout.decode().strip() if done.returncode == 0 else ""
+
+
 def _has_code(path: Path) -> tuple[bool, str, str]:
     """Whether the run carries a code block, its algorithm, and the run it was copied from."""
     from localpbo_core.sweep import read_run
@@ -130,7 +148,8 @@ def stored_code(root: Path = ROOT) -> dict[str, Any]:
 
     folders = [root / f for f in FOLDERS if (root / f).is_dir()]
     files = [p.relative_to(root).as_posix() for p in run_files(folders)]
-    commits = storing_commits(root, files)
+    first = first_commits(root)
+    commits = storing_commits(root, files, first)
     tracked = set(_git(root, "ls-files", "--", *FOLDERS).decode().splitlines())
     files = [f for f in files if f in tracked]
     home = (root / OUTPUT).parent
@@ -140,13 +159,15 @@ def stored_code(root: Path = ROOT) -> dict[str, Any]:
         has_code, algorithm, reused_from = _has_code(root / rel)
         if has_code:
             continue
-        if reused_from:
-            # a copy (localpbo sweep --reuse) was made by the code that made its source
+        if reused_from and rel in commits:
+            # a copy (localpbo sweep --reuse) was made by the code that made its source as it
+            # was when the copy was stored (the source may have been re-run since)
             spec, run_id = reused_from.split("/", 1)
             folder = Path(rel).parent.parent.parent
-            source = folder / spec / "runs" / f"{run_id}.json.gz"
-            if source.as_posix() in commits:
-                commits[rel] = commits[source.as_posix()]
+            source = (folder / spec / "runs" / f"{run_id}.json.gz").as_posix()
+            copied = _blob_at(root, commits[rel], source)
+            if copied in first:
+                commits[rel] = first[copied]
         if rel not in commits:
             continue
         runs[os.path.relpath(root / rel, home)] = commits[rel]
