@@ -61,7 +61,7 @@ def test_out_of_model_sobol_and_glisp_are_the_within_model_runs() -> None:
     """notes, docs/reproducing.md: Sobol and GLISp take no GP hyperparameters, so every one
     of their out-of-model runs has the candidates (in task units) and answers of its
     within-model run."""
-    pairs = 0
+    pairs = low = 0
     for path in sorted((RESULTS / "gp_out_of_model" / "runs").glob("*.json.gz")):
         if path.name.split("__")[1] not in ("sobol", "glisp"):
             continue
@@ -73,7 +73,9 @@ def test_out_of_model_sobol_and_glisp_are_the_within_model_runs() -> None:
         assert native == [c["native"] for c in within["candidates"]], path.name
         assert out["answers"] == within["answers"], path.name
         pairs += 1
-    assert pairs == 2 * 6 * len(COVERAGE_SEEDS)  # Sobol, GLISp; d = 8, 16, 32 at two scales
+        low += path.name.split("_l")[0] in ("gp8", "gp16", "gp32")
+    assert low == 2 * 6 * len(COVERAGE_SEEDS)  # Sobol, GLISp; d = 8, 16, 32 at two scales
+    assert pairs >= low  # and every pair at d = 64, 96 stored so far
 
 
 def test_reproducing_counts_the_runs_of_each_spec() -> None:
