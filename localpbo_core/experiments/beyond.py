@@ -203,12 +203,15 @@ def main_runs(runs: Sequence[StoredRun]) -> dict[tuple[str, str], list[StoredRun
     return out
 
 
-def same_as_reference(runs: Sequence[StoredRun], label: str) -> dict[str, tuple[int, int]]:
-    """Per main problem (``spec/label``) where ``label`` and TuRPBO both ran: how many of
-    ``label``'s runs have TuRPBO's run's value at every evaluation (a hybrid that never took
-    a local step asks TuRPBO's candidates), as ``(same, seeds)``."""
+def same_as_reference(
+    merged_runs: dict[tuple[str, str], list[StoredRun]], label: str
+) -> dict[str, tuple[int, int]]:
+    """Per main problem (``spec/label``) of :func:`main_runs`'s ``merged_runs`` where ``label``
+    and TuRPBO both ran: how many of ``label``'s runs have TuRPBO's run's value at every
+    evaluation (a hybrid that never took a local step asks TuRPBO's candidates), as
+    ``(same, seeds)``."""
     out = {}
-    for (spec, problem), merged in main_runs(runs).items():
+    for (spec, problem), merged in merged_runs.items():
         mine = {r.seed: r for r in merged if r.algorithm_label == label}
         theirs = {r.seed: r for r in merged if r.algorithm_label == REFERENCE}
         if not mine or not theirs:
@@ -496,8 +499,9 @@ def which_algorithm_section(
         verdicts = goal_verdicts(table, h)
         cells = [v for _, v in verdicts] + [decision_time_verdict(h, records)]
         lines.append(f"| {h} | " + " | ".join(cells) + " |")
+    merged_runs = main_runs(runs)
     for h in hybrids:
-        same = same_as_reference(runs, h)
+        same = same_as_reference(merged_runs, h)
         if same:
             lines += [
                 "",

@@ -159,6 +159,14 @@ class RecorderNode(SuiteNode):
             )
             for spec in self.topics
         ]
+        self._config_sub = next(
+            (
+                sub
+                for spec, sub in zip(self.topics, self._subs, strict=True)
+                if spec.name == RUN_CONFIG.name
+            ),
+            None,
+        )
         self.state = "recording"
 
     @property
@@ -205,13 +213,11 @@ class RecorderNode(SuiteNode):
         """Take the run configs already waiting in their subscription, ahead of the executor's
         order (it serves the candidate topic first): a run's first candidate and its config
         often wait side by side. True when a run config is known afterwards."""
-        if self._taking_config:
+        if self._taking_config or self._config_sub is None:
             return False
         self._taking_config = True
         try:
-            for spec, sub in zip(self.topics, self._subs, strict=True):
-                if spec.name == RUN_CONFIG.name:
-                    self._take_waiting(spec, sub, time.monotonic() + DRAIN_S)
+            self._take_waiting(RUN_CONFIG, self._config_sub, time.monotonic() + DRAIN_S)
         finally:
             self._taking_config = False
         return self.filter.config is not None
