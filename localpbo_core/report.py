@@ -12,7 +12,8 @@ label is one row. Output in ``OUT``:
   ``wilcoxon``, exact for small samples), the p-values of a group and metric are
   **Holm-corrected** (:func:`holm`), and algorithms not significantly different from the best
   (adjusted p >= ``alpha``) are underlined (``<u>…</u>``). Then the compute table: optimizer
-  seconds per run (mean ± std) next to the paper's App. E figure
+  seconds per run (mean ± std), the share of a core the runs got (:attr:`StoredRun.core_share`),
+  next to the paper's App. E figure
   (:data:`localpbo_core.experiments.paper.PAPER_SECONDS`, empty where the paper reports no
   number) and the ratio paper / ours (only for runs at the default budget with default
   options, the configuration the paper timed).
@@ -61,6 +62,10 @@ class StoredRun(RunLabels):
     best_seen: np.ndarray
     cumulative: np.ndarray
     optimizer_seconds: float
+    core_share: float | None = None
+    """The run's process CPU seconds over its wall seconds (one thread per run: at most about
+    one, lower when other processes kept it waiting, so its seconds are high by up to
+    ``1 / core_share``); None for runs stored before runs recorded it."""
     reused_from: str = ""
     """``<spec>/<run_id>`` when ``localpbo sweep --reuse`` copied the run from another sweep."""
     code: dict[str, Any] | None = None
@@ -104,6 +109,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
                 best_seen=np.array([r["best_seen"] for r in records], dtype=np.float64),
                 cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
                 optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
+                core_share=_core_share(doc),
                 reused_from=str(meta.get("reused_from", "")),
                 code=tables.known_code(path, doc),
             )
@@ -116,6 +122,14 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     return sorted(
         runs, key=lambda r: (r.spec, r.problem_label, r.variant, r.algorithm_label, r.seed)
     )
+
+
+def _core_share(doc: dict[str, Any]) -> float | None:
+    """``cpu_seconds / run_seconds`` of a stored run (:mod:`localpbo_core.sweep`), if recorded."""
+    wall, cpu = doc.get("run_seconds"), doc.get("cpu_seconds")
+    if not isinstance(wall, float) or not isinstance(cpu, float) or wall <= 0:
+        return None
+    return cpu / wall
 
 
 def complete_groups(runs: Sequence[StoredRun], seeds: Sequence[int]) -> list[StoredRun]:
@@ -221,11 +235,12 @@ def _paper_configuration(run: StoredRun) -> bool:
 def compute_table(runs: Sequence[StoredRun]) -> list[str]:
     """Optimizer seconds per run against the paper's App. E figure; runs that ``localpbo
     sweep --reuse`` copied from another spec are counted in the seconds cell (their seconds
-    are the source's)."""
+    are the source's). *core share*: the mean of :attr:`StoredRun.core_share` over the runs
+    that recorded it, with their count when not all did."""
     lines = [
-        "| spec | problem | algorithm | runs | optimizer s/run "
+        "| spec | problem | algorithm | runs | optimizer s/run | core share "
         "| paper s/run (App. E) | paper / ours |",
-        "| --- | --- | --- | ---: | --- | ---: | ---: |",
+        "| --- | --- | --- | ---: | --- | --- | ---: | ---: |",
     ]
     keys = sorted({(r.spec, r.problem_label, r.variant, r.algorithm_label) for r in runs})
     for spec, problem, variant, alg in keys:
@@ -250,8 +265,12 @@ def compute_table(runs: Sequence[StoredRun]) -> list[str]:
         sources = sorted({r.reused_from.split("/")[0] for r in mine if r.reused_from})
         copied = sum(1 for r in mine if r.reused_from)
         note = f" ({copied} runs copied from {', '.join(sources)})" if copied else ""
+        shares = [r.core_share for r in mine if r.core_share is not None]
+        share = f"{np.mean(shares):.2f}" if shares else ""
+        if shares and len(shares) < len(mine):
+            share += f" ({len(shares)} of {len(mine)} runs)"
         lines.append(
-            f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)}{note} | "
+            f"| {spec} | {label} | {alg} | {len(mine)} | {_mean_std(secs)}{note} | {share} | "
             f"{'' if paper is None else f'{paper:g}'} | {ratio} |"
         )
     return lines
@@ -683,9 +702,12 @@ def write_report(
         *drift_section(paths),
         "## Compute time",
         "",
-        "Optimizer seconds per run (ask and tell; evaluations and oracle excluded). The "
-        "paper's App. E figures are per run at the paper's budget on 8-core nodes; the ratio "
-        "is shown only for runs at the default budget and options.",
+        "Optimizer seconds per run (ask and tell; evaluations and oracle excluded), wall "
+        "time. *core share*: the run's process CPU seconds over its wall seconds, one thread "
+        "per run: near 1 the run had a core to itself, below 1 other processes kept it "
+        "waiting and its seconds are high by up to 1 / share (blank: stored before runs "
+        "recorded it). The paper's App. E figures are per run at the paper's budget on "
+        "8-core nodes; the ratio is shown only for runs at the default budget and options.",
         "",
         *compute_table(runs),
         "",

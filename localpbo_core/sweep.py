@@ -16,7 +16,9 @@
   ``OUT/runs/<run_id>.json.gz`` (``run_id`` = ``<problem>__<algorithm>[__<variant>]__seed<k>``):
   the content of ``localpbo bench``'s ``runs/*.json`` (schema ``localpbo/run/v1``: settings,
   candidates, answers, per-evaluation records) plus ``run`` (spec name, labels, seed,
-  within-model flag), ``optimizer_seconds``, ``code`` (which code made it,
+  within-model flag), ``optimizer_seconds``, ``run_seconds`` and ``cpu_seconds`` (the
+  run's wall and process CPU seconds: their ratio is the share of a core the run got, below
+  one when other processes kept it waiting), ``code`` (which code made it,
   :mod:`localpbo_core.provenance`) and ``effective_settings`` (the settings with every
   optimizer option completed by the algorithm's defaults and the budget resolved, so a run
   says what it ran even after a default changes). The driver writes it atomically (a temporary
@@ -100,10 +102,14 @@ def execute_run(plan: PlannedRun) -> dict[str, Any]:
     from localpbo_core.run_documents import trace_document
     from localpbo_core.session import Session
 
+    wall, cpu = time.perf_counter(), time.process_time()
     trace = run_session(Session(plan.settings))
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     doc = trace_document(plan.settings, trace)
     doc["run"] = plan.describe()
     doc["optimizer_seconds"] = sum(r.decision_seconds for r in trace.records)
+    doc["run_seconds"] = wall
+    doc["cpu_seconds"] = cpu
     doc["code"] = code_block(plan.settings.algorithm)
     effective = effective_settings(doc["settings"])
     if effective is not None:

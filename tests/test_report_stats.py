@@ -13,6 +13,8 @@ from statsmodels.stats.multitest import multipletests
 from localpbo_core.experiments.comparisons import compare, holm, paired_wilcoxon
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from localpbo_core.report import StoredRun
 
 
@@ -25,6 +27,7 @@ def stored_run(
     seed: int = 0,
     optimizer_seconds: float = 0.0,
     code: dict[str, Any] | None = None,
+    core_share: float | None = None,
 ) -> StoredRun:
     """A stored run of one-point traces with these labels and settings."""
     from localpbo_core.report import StoredRun
@@ -40,6 +43,7 @@ def stored_run(
         best_seen=np.zeros(1),
         cumulative=np.zeros(1),
         optimizer_seconds=optimizer_seconds,
+        core_share=core_share,
         code=code,
     )
 
@@ -124,13 +128,57 @@ def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() 
             run("gp_sample", "gp8", {"dim": 8, "lengthscale": 0.1, "instance": 0}),
         ]
     )[2:]
-    cells = {row.split(" | ")[1]: row.split(" | ")[5:] for row in rows}
+    cells = {row.split(" | ")[1]: row.split(" | ")[6:] for row in rows}
     hopper = paper_seconds("hopper", "sobol")
     assert hopper is not None
     assert cells["hopper"] == [f"{hopper:g}", f"{hopper / 1.1:.3g}x |"]
     assert cells["walker2d_short"] == ["", " |"]
     assert cells["hartmann6_b40"] == ["", " |"]
     assert cells["gp8"][0] == f"{paper_seconds('gp8_l0.1/out', 'sobol'):g}"
+
+
+def test_compute_table_shows_the_core_share_of_the_runs_that_recorded_it() -> None:
+    """The share is the mean over the runs that recorded one, with their count when some did
+    not; a group without any leaves the cell blank."""
+    from localpbo_core.report import compute_table
+
+    settings = {
+        "problem": "hartmann6",
+        "algorithm": "sobol",
+        "optimizer_options": {},
+        "problem_options": {},
+        "budget": None,
+    }
+    rows = compute_table(
+        [
+            stored_run("all", "sobol", settings, seed=0, core_share=0.5),
+            stored_run("all", "sobol", settings, seed=1, core_share=1.0),
+            stored_run("some", "sobol", settings, seed=0, core_share=0.25),
+            stored_run("some", "sobol", settings, seed=1),
+            stored_run("none", "sobol", settings, seed=0),
+        ]
+    )[2:]
+    share = {row.split(" | ")[1]: row.split(" | ")[5] for row in rows}
+    assert share == {"all": "0.75", "some": "0.25 (1 of 2 runs)", "none": ""}
+
+
+def test_a_stored_run_reads_its_core_share(tmp_path: Path) -> None:
+    """A run stored by a sweep carries its wall and CPU seconds; the report reads their
+    ratio, and None from a run stored without them."""
+    from localpbo_core.experiments.spec import load_spec
+    from localpbo_core.report import load_runs
+    from localpbo_core.sweep import execute_run, read_run, run_path, write_run
+
+    plan = load_spec("tiny").runs(None, ["sobol"], None, [0])[0]
+    doc = execute_run(plan)
+    write_run(run_path(tmp_path / "new", plan), doc)
+    (run,) = load_runs([tmp_path / "new"])
+    assert run.core_share == doc["cpu_seconds"] / doc["run_seconds"]
+    old = {k: v for k, v in read_run(run_path(tmp_path / "new", plan)).items()}
+    del old["cpu_seconds"], old["run_seconds"]
+    write_run(run_path(tmp_path / "old", plan), old)
+    (run,) = load_runs([tmp_path / "old"])
+    assert run.core_share is None
 
 
 def test_provenance_per_run_group_and_spec() -> None:

@@ -75,6 +75,7 @@ def without_timings(doc: dict) -> dict:
     the digests)."""
     doc = dict(doc)
     doc.pop("optimizer_seconds")
+    assert 0 < doc.pop("cpu_seconds") and 0 < doc.pop("run_seconds")
     code = doc.pop("code")
     assert set(code) == {"digest", "algorithm_digest", "commit", "dirty"}
     doc["records"] = [
