@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import pytest
 
 from localpbo_core.experiments.drift import compare, table
 from localpbo_core.provenance import code_block
+
+
+def _git(*args: str) -> str:
+    """``git ARGS`` in the checkout, its output stripped."""
+    from localpbo_core.provenance import ROOT
+
+    return subprocess.run(
+        ["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True
+    ).stdout.strip()
 
 
 def _doc(natives: list[list[float]], final: float, code: dict | None = None) -> dict:
@@ -51,7 +61,6 @@ def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
     source's), and that commit's digests as
     :func:`~localpbo_core.experiments.stored_code.code_at` computes them."""
     import json
-    import subprocess
 
     from localpbo_core.experiments.stored_code import code_at
     from localpbo_core.provenance import ROOT, stored_by_commit
@@ -62,13 +71,7 @@ def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
     # most stored runs predate code blocks; re-runs (sweep --rerun-changed) carry their own
     assert len(runs) >= 1500
     doc = json.loads(table.read_text())
-    shallow = subprocess.run(
-        ["git", "-C", str(ROOT), "rev-parse", "--is-shallow-repository"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.strip()
-    if shallow == "true":
+    if _git("rev-parse", "--is-shallow-repository") == "true":
         assert all(path.is_file() for path in runs)
         pytest.skip("a shallow clone holds too little history to check the storing commits")
     for i, (path, (commit, _digests)) in enumerate(sorted(runs.items())):
@@ -77,18 +80,8 @@ def test_committed_storing_commits_name_stored_runs_and_their_digests() -> None:
             continue
         assert "code" not in read_run(path)
         rel = path.relative_to(ROOT).as_posix()
-        blob = subprocess.run(
-            ["git", "-C", str(ROOT), "rev-parse", f"HEAD:{rel}"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        added = subprocess.run(
-            ["git", "-C", str(ROOT), "show", "--raw", "--no-abbrev", "--format=", commit],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout
+        blob = _git("rev-parse", f"HEAD:{rel}")
+        added = _git("show", "--raw", "--no-abbrev", "--format=", commit)
         copied = "reused_from" in read_run(path)["run"]
         assert copied or any(
             line.split()[3] == blob and line.split()[4] in ("A", "M") for line in added.splitlines()
@@ -136,17 +129,10 @@ def test_every_optimizer_module_belongs_to_an_algorithm_digest() -> None:
 def test_a_copy_is_dated_by_its_source_as_it_was_copied() -> None:
     """A copy (``sweep --reuse``) whose source was re-run since keeps the storing commit of the
     source's bytes it copied, not the re-run's (its trace is the old one)."""
-    import subprocess
-
     from localpbo_core.provenance import ROOT, stored_by_commit
     from localpbo_core.sweep import read_run
 
-    def git(*args: str) -> str:
-        return subprocess.run(
-            ["git", "-C", str(ROOT), *args], capture_output=True, text=True, check=True
-        ).stdout.strip()
-
-    if git("rev-parse", "--is-shallow-repository") == "true":
+    if _git("rev-parse", "--is-shallow-repository") == "true":
         pytest.skip("a shallow clone holds too little history")
     runs = stored_by_commit(ROOT / "docs" / "results" / "stored_code.json")
     copy = ROOT / "docs/results/beyond_hybrid/runs/styblinskitang64__turpbo__seed0.json.gz"
@@ -155,8 +141,8 @@ def test_a_copy_is_dated_by_its_source_as_it_was_copied() -> None:
     assert read_run(copy)["run"]["reused_from"] == "synthetic/styblinskitang64__turpbo__seed0"
     commit, _ = runs[copy]
     rel = copy.relative_to(ROOT).as_posix()
-    copied_at = git("log", "--diff-filter=A", "--format=%H", "--", rel).splitlines()[-1]
-    old_blob = git("rev-parse", f"{copied_at}:{source}")
-    added = git("show", "--raw", "--no-abbrev", "--format=", commit)
+    copied_at = _git("log", "--diff-filter=A", "--format=%H", "--", rel).splitlines()[-1]
+    old_blob = _git("rev-parse", f"{copied_at}:{source}")
+    added = _git("show", "--raw", "--no-abbrev", "--format=", commit)
     assert any(line.split()[3] == old_blob for line in added.splitlines())
-    assert old_blob != git("rev-parse", f"HEAD:{source}")
+    assert old_blob != _git("rev-parse", f"HEAD:{source}")

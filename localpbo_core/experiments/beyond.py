@@ -535,9 +535,3 @@ def evidence_folders(results: Path) -> list[Path]:
         for p in sorted(results.iterdir())
         if p.is_dir() and (p.name in specs or p.name.startswith(BEYOND_PREFIX))
     ]
-
-
-def stored_choice(runs: Sequence[StoredRun], alpha: float = 0.05) -> str | None:
-    """:func:`evidence_choice` on stored runs (those of :func:`evidence_folders`, read by
-    :func:`localpbo_core.report.load_runs`; alpha: ``localpbo report``'s default)."""
-    return evidence_choice(standings(main_groups(runs, alpha), alpha))
