@@ -124,3 +124,51 @@ def test_noise_table_is_the_problems_own_scale() -> None:
     ):
         assert rows[problem].endswith(f"| 0.1 | {expected} |")
         assert f"{0.1 * make_problem(problem).value_range:.3g}" == expected
+
+
+def test_reproducing_states_the_measured_run_times() -> None:
+    """docs/reproducing.md's Compute section: the mean wall seconds per run it quotes, read off
+    the stored runs that record them (``run_seconds``), and Walker2d TuRPBO's optimizer time."""
+    text = " ".join((ROOT / "docs" / "reproducing.md").read_text().split())
+    assert (
+        "Hartmann 6 under 11 s; GP paths with d = 96 under 5 s within model and 16–31 s out of "
+        "model for GIPBOr and PrefSQP, under 1 s for Sobol, 230 s for TuRPBO (within model, "
+        "ℓ = 0.1); d = 64 65–136 s for TuRPBO; Hopper without warm start 35 s (HB-EI) to 108 s "
+        "(GLISp), and 1,390–1,490 s for GIPBO's first two runs" in text
+    )
+    assert "TuRPBO's about 1,700 s of optimizer time on average" in text
+
+    def docs(spec: str, pattern: str) -> list[dict]:
+        out = []
+        for path in sorted((RESULTS / spec / "runs").glob(f"{pattern}__seed*.json.gz")):
+            with gzip.open(path, "rt") as fh:
+                out.append(json.load(fh))
+        return out
+
+    def mean_wall(spec: str, pattern: str) -> list[float]:
+        """Per group matching ``pattern``: the mean wall seconds of its runs that record one."""
+        groups: dict[str, list[float]] = defaultdict(list)
+        for doc in docs(spec, pattern):
+            if "run_seconds" in doc:
+                groups[doc["run"]["algorithm_label"] + doc["run"]["problem_label"]].append(
+                    doc["run_seconds"]
+                )
+        assert groups, (spec, pattern)
+        return [sum(v) / len(v) for v in groups.values()]
+
+    assert max(mean_wall("synthetic", "hartmann6__*")) < 11
+    for alg in ("gipbor", "prefsqp"):
+        assert max(mean_wall("gp_within", f"gp96_*__{alg}")) < 5
+        out = mean_wall("gp_out_of_model", f"gp96_*__{alg}")
+        assert 16 <= round(min(out)) and round(max(out)) <= 31
+    for spec in ("gp_within", "gp_out_of_model"):
+        assert max(mean_wall(spec, "gp96_*__sobol")) < 1
+    assert [round(t) for t in mean_wall("gp_within", "gp96_l0.1__turpbo")] == [230]
+    d64 = mean_wall("gp_within", "gp64_*__turpbo") + mean_wall("gp_out_of_model", "gp64_*__turpbo")
+    assert round(min(d64)) == 65 and round(max(d64)) == 136
+    assert [round(t) for t in mean_wall("policy_no_warm_start", "hopper__hbei")] == [35]
+    assert [round(t) for t in mean_wall("policy_no_warm_start", "hopper__glisp")] == [108]
+    gipbo = [d["run_seconds"] for d in docs("policy_no_warm_start", "hopper__gipbo")[:2]]
+    assert [round(t, -1) for t in gipbo] == [1490, 1390]
+    walker = [d["optimizer_seconds"] for d in docs("policy_warm_start", "walker2d__turpbo")]
+    assert round(sum(walker) / len(walker), -2) == 1700
