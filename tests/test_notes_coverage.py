@@ -172,3 +172,17 @@ def test_reproducing_states_the_measured_run_times() -> None:
     assert [round(t, -1) for t in gipbo] == [1490, 1390]
     walker = [d["optimizer_seconds"] for d in docs("policy_warm_start", "walker2d__turpbo")]
     assert round(sum(walker) / len(walker), -2) == 1700
+
+
+def test_notes_state_the_rerun_hopper_qeubo_finals() -> None:
+    """notes, "Re-runs with today's code": qEUBO on Hopper with warm start, seeds 0-3, ended at
+    1600, 131, 1070 and 797 (final best-seen of the stored re-runs)."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    assert "seeds 0–3 (the rest not re-run yet)" in notes
+    assert "ended at 1600, 131, 1070 and 797 instead of" in notes
+    finals = []
+    for seed in range(4):
+        path = RESULTS / "policy_warm_start" / "runs" / f"hopper__qeubo__seed{seed}.json.gz"
+        with gzip.open(path, "rt") as fh:
+            finals.append(round(json.load(fh)["records"][-1]["best_seen"]))
+    assert finals == [1600, 131, 1070, 797]
