@@ -186,3 +186,14 @@ def test_notes_state_the_rerun_hopper_qeubo_finals() -> None:
         with gzip.open(path, "rt") as fh:
             finals.append(round(json.load(fh)["records"][-1]["best_seen"]))
     assert finals == [1600, 131, 1070, 797]
+
+
+def test_notes_state_glisp_time_at_d64() -> None:
+    """notes, "GLISp at high n": seed 0 of GLISp on the 64-D l = 0.1 GP paths within model took
+    876 s at a core share of 0.72 (the stored run)."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    assert "seed 0 took 876 s within model (core share 0.72)" in notes
+    with gzip.open(RESULTS / "gp_within" / "runs" / "gp64_l0.1__glisp__seed0.json.gz", "rt") as fh:
+        doc = json.load(fh)
+    assert round(doc["run_seconds"]) == 876
+    assert round(doc["cpu_seconds"] / doc["run_seconds"], 2) == 0.72
