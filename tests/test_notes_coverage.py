@@ -132,9 +132,10 @@ def test_reproducing_states_the_measured_run_times() -> None:
     text = " ".join((ROOT / "docs" / "reproducing.md").read_text().split())
     assert (
         "Hartmann 6 under 11 s; GP paths with d = 96 under 5 s within model and 16–31 s out of "
-        "model for GIPBOr and PrefSQP, under 1 s for Sobol, 230 s for TuRPBO (within model, "
-        "ℓ = 0.1); d = 64 65–136 s for TuRPBO; Hopper without warm start 35 s (HB-EI) to 108 s "
-        "(GLISp), and 1,390–1,490 s for GIPBO's first two runs" in text
+        "model for GIPBOr and PrefSQP, under 1 s for Sobol, 230 s (ℓ = 0.1) and 445 s (ℓ = 0.5) "
+        "for TuRPBO within model; d = 64 65–136 s for TuRPBO and 135–191 s for qEUBO within "
+        "model; Hopper without warm start 35 s (HB-EI) to 108 s (GLISp), and 1,390–1,490 s for "
+        "GIPBO's first two runs" in text
     )
     assert "TuRPBO's about 1,700 s of optimizer time on average" in text
 
@@ -164,6 +165,8 @@ def test_reproducing_states_the_measured_run_times() -> None:
     for spec in ("gp_within", "gp_out_of_model"):
         assert max(mean_wall(spec, "gp96_*__sobol")) < 1
     assert [round(t) for t in mean_wall("gp_within", "gp96_l0.1__turpbo")] == [230]
+    assert [round(t) for t in mean_wall("gp_within", "gp96_l0.5__turpbo")] == [445]
+    assert sorted(round(t) for t in mean_wall("gp_within", "gp64_*__qeubo")) == [135, 191]
     d64 = mean_wall("gp_within", "gp64_*__turpbo") + mean_wall("gp_out_of_model", "gp64_*__turpbo")
     assert round(min(d64)) == 65 and round(max(d64)) == 136
     assert [round(t) for t in mean_wall("policy_no_warm_start", "hopper__hbei")] == [35]
