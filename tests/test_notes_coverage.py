@@ -14,6 +14,7 @@ import pytest
 
 from localpbo_core.experiments import load_spec
 from localpbo_core.report import COVERAGE_SEEDS, PAPER_SPECS, coverage_table, noise_table
+from localpbo_core.sweep import read_run
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
@@ -183,11 +184,11 @@ def test_notes_state_the_rerun_hopper_qeubo_finals() -> None:
     notes = " ".join((RESULTS / "notes.md").read_text().split())
     assert "seeds 0–3 (the rest not re-run yet)" in notes
     assert "ended at 1600, 131, 1070 and 797 instead of" in notes
+    runs = RESULTS / "policy_warm_start" / "runs"
     finals = []
     for seed in range(4):
-        path = RESULTS / "policy_warm_start" / "runs" / f"hopper__qeubo__seed{seed}.json.gz"
-        with gzip.open(path, "rt") as fh:
-            finals.append(round(json.load(fh)["records"][-1]["best_seen"]))
+        doc = read_run(runs / f"hopper__qeubo__seed{seed}.json.gz")
+        finals.append(round(doc["records"][-1]["best_seen"]))
     assert finals == [1600, 131, 1070, 797]
 
 
@@ -196,7 +197,6 @@ def test_notes_state_glisp_time_at_d64() -> None:
     876 s at a core share of 0.72 (the stored run)."""
     notes = " ".join((RESULTS / "notes.md").read_text().split())
     assert "seed 0 took 876 s within model (core share 0.72)" in notes
-    with gzip.open(RESULTS / "gp_within" / "runs" / "gp64_l0.1__glisp__seed0.json.gz", "rt") as fh:
-        doc = json.load(fh)
+    doc = read_run(RESULTS / "gp_within" / "runs" / "gp64_l0.1__glisp__seed0.json.gz")
     assert round(doc["run_seconds"]) == 876
     assert round(doc["cpu_seconds"] / doc["run_seconds"], 2) == 0.72
