@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -76,44 +76,55 @@ class StoredRun(RunLabels):
 
 
 # ---------------------------------------------------------------------- loading
-def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
-    """Read every run under ``paths`` (:func:`run_files`). A folder's ``stored_code.json``
-    dates the runs stored without a code version by the commit that stored them, its
-    ``equivalent_code.json`` says which code changes left traces unchanged
-    (:mod:`localpbo_core.experiments.stored_code`, :mod:`localpbo_core.experiments.drift`)."""
+def read_stored_run(path: Path) -> tuple[StoredRun, dict[str, Any] | None]:
+    """The run stored at ``path`` as the report uses it, without its provenance (``code`` is
+    None), and the document's own ``code`` block (None when it has none). Reading the file is
+    the report's main cost: the document holds every candidate and answer."""
     from localpbo_core.sweep import read_run
 
+    doc = read_run(path)
+    s = doc["settings"]
+    meta = doc.get("run") or {
+        "spec": "bench",
+        "problem_label": s["problem"],
+        "algorithm_label": s["algorithm"],
+        "variant": "",
+        "within_model": False,
+    }
+    records = doc["records"]
+    run = StoredRun(
+        spec=meta["spec"],
+        problem_label=meta["problem_label"],
+        algorithm_label=meta["algorithm_label"],
+        variant=meta["variant"],
+        seed=int(s["seed"]),
+        within_model=bool(meta["within_model"]),
+        settings=s,
+        best_seen=np.array([r["best_seen"] for r in records], dtype=np.float64),
+        cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
+        optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
+        core_share=_core_share(doc),
+        reused_from=str(meta.get("reused_from", "")),
+    )
+    code = doc.get("code")
+    return run, code if isinstance(code, dict) else None
+
+
+def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
+    """Read every run under ``paths`` (:func:`run_files`, each by :func:`read_stored_run`). A
+    folder's ``stored_code.json`` dates the runs stored without a code version by the commit
+    that stored them, its ``equivalent_code.json`` says which code changes left traces
+    unchanged (:mod:`localpbo_core.experiments.stored_code`,
+    :mod:`localpbo_core.experiments.drift`)."""
     paths = list(paths)
     tables = ProvenanceTables(Path(p) for p in paths if Path(p).is_dir())
     runs = []
     for path in run_files(paths):
-        doc = read_run(path)
-        s = doc["settings"]
-        meta = doc.get("run") or {
-            "spec": "bench",
-            "problem_label": s["problem"],
-            "algorithm_label": s["algorithm"],
-            "variant": "",
-            "within_model": False,
-        }
-        records = doc["records"]
-        runs.append(
-            StoredRun(
-                spec=meta["spec"],
-                problem_label=meta["problem_label"],
-                algorithm_label=meta["algorithm_label"],
-                variant=meta["variant"],
-                seed=int(s["seed"]),
-                within_model=bool(meta["within_model"]),
-                settings=s,
-                best_seen=np.array([r["best_seen"] for r in records], dtype=np.float64),
-                cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
-                optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
-                core_share=_core_share(doc),
-                reused_from=str(meta.get("reused_from", "")),
-                code=tables.known_code(path, doc),
-            )
+        run, code = read_stored_run(path)
+        own = (
+            {"settings": run.settings} if code is None else {"settings": run.settings, "code": code}
         )
+        runs.append(replace(run, code=tables.known_code(path, own)))
     if not runs:
         raise SettingError("results", "no stored runs found")
     keys = [(r.spec, r.problem_label, r.algorithm_label, r.variant, r.seed) for r in runs]

@@ -9,7 +9,10 @@ free. Without xdist (plain ``pytest``) the groups change nothing.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from functools import cache
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -48,8 +51,8 @@ GROUPS: dict[str, tuple[str, ...]] = {
     "ros": (*PROCESS_TESTS, "test_entry_points.py", "test_docs_commands.py", "test_no_ros.py"),
     # an embedded or started Ray cluster
     "ray": ("test_sweep.py", "test_sweep_cluster.py"),
-    # every stored run read once per module (a module-scoped fixture is made once per worker)
-    "stored-runs": ("test_notes_coverage.py", "test_results_page.py"),
+    # the stored runs, read once per worker (fixture ``stored_runs_read_once``)
+    "stored-runs": ("test_notes_coverage.py", "test_results_page.py", "test_which_algorithm.py"),
 }
 """xdist group name -> test files (relative to ``tests/``). Two groups may run at the same
 time, so the ROS domains of "ros-stops" are used by no other test."""
@@ -66,3 +69,26 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         name = group_of(item.path)
         if name is not None:
             item.add_marker(pytest.mark.xdist_group(name))
+
+
+@pytest.fixture(scope="session")
+def stored_runs_read_once() -> Iterator[None]:
+    """Read each stored run's file once per test process: the report's per-file reader
+    (:func:`localpbo_core.report.read_stored_run`, a few hundred MB of JSON over all stored
+    runs) is cached by the file's path, modification time and size, so a changed file is read
+    again. The tests of the stored results share one xdist worker ("stored-runs")."""
+    import localpbo_core.report as report
+
+    read = report.read_stored_run
+
+    @cache
+    def cached(path: Path, _mtime_ns: int, _size: int) -> Any:
+        return read(path)
+
+    def read_once(path: Path) -> Any:
+        stat = path.stat()
+        return cached(path.resolve(), stat.st_mtime_ns, stat.st_size)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report, "read_stored_run", read_once)
+        yield

@@ -53,3 +53,11 @@ def test_groups_running_side_by_side_use_different_ros_domains() -> None:
     stops, others = domains("ros-stops"), domains("ros")
     assert stops and others
     assert not stops & others, sorted(stops & others)
+
+
+def test_the_stored_results_tests_read_each_run_once() -> None:
+    """The files of the "stored-runs" group read the stored runs through the session's cache
+    (fixture ``stored_runs_read_once``), so the group reads each run file once."""
+    for name in GROUPS["stored-runs"]:
+        text = (TESTS / name).read_text()
+        assert 'pytestmark = pytest.mark.usefixtures("stored_runs_read_once")' in text, name

@@ -12,6 +12,8 @@ from localpbo_core.report import RESULTS_COMMAND, results_page_args, write_resul
 
 ROOT = Path(__file__).resolve().parents[1]
 
+pytestmark = pytest.mark.usefixtures("stored_runs_read_once")
+
 
 @pytest.fixture(scope="module")
 def page() -> str:

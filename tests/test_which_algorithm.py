@@ -31,6 +31,8 @@ from localpbo_core.settings import DEFAULT_ALGORITHM
 from tests.fabricated import stored_run as _run
 
 ROOT = Path(__file__).resolve().parents[1]
+
+pytestmark = pytest.mark.usefixtures("stored_runs_read_once")
 SEEDS = range(10)
 
 
