@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from localpbo_ros.suite import run_suite
+
+from localpbo_msgs_py import DuelOutcome
 
 
 class JudgedSuite:
@@ -49,3 +52,17 @@ class JudgedSuite:
         assert not self.thread.is_alive()
         assert "error" not in self.result, self.result["error"]
         return self.result["summary"]
+
+
+def answers_once_each(outcomes: Iterable[DuelOutcome]) -> dict[int, DuelOutcome]:
+    """The recorded outcomes of a person-judged run by duel id, each duel's first one.
+
+    The bag holds every outcome published, and the judge sends a journaled answer again when
+    the optimizer's request for it comes back (a request re-published before the answer was
+    taken, likely on a loaded machine); the optimizer counts such a repeat as a duplicate.
+    So a duel may be recorded more than once, but only ever with the same answer: anything
+    else fails here."""
+    first: dict[int, DuelOutcome] = {}
+    for out in outcomes:
+        assert first.setdefault(out.duel_id, out) == out, (first[out.duel_id], out)
+    return first

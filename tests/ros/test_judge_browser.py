@@ -22,7 +22,7 @@ from localpbo_ros.replay import verify
 
 from localpbo_msgs_py import OutcomeKind
 
-from .judged_suite import JudgedSuite
+from .judged_suite import JudgedSuite, answers_once_each
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
@@ -188,9 +188,10 @@ def test_whole_run_answered_in_the_browser(browser: Any, tmp_path: Path) -> None
     summary = run.finish()
     assert summary.state == "done" and summary.duels == 5
 
-    # the bag: every answer exactly once, as given, with its answer time; it verifies
+    # the bag: every answer as given (a repeat only ever the same), with its answer time; it
+    # verifies
     recorded = load_run(run.bag)
-    assert sorted(o.duel_id for o in recorded.outcomes) == sorted(answers)
+    assert sorted(answers_once_each(recorded.outcomes)) == sorted(answers)
     for out in recorded.outcomes:
         assert out.kind is OutcomeKind.DECISIVE
         said = "A better" if out.winner_id == out.first_id else "B better"
@@ -274,9 +275,7 @@ def test_cant_tell_in_the_browser(browser: Any, tmp_path: Path) -> None:
         reply_text(browser, f"Recorded: duel {duel}")
     summary = run.finish()
     assert summary.state == "done"
-    outcomes = load_run(run.bag).outcomes
-    ids = [o.duel_id for o in outcomes]
-    assert len(ids) == len(set(ids))
+    outcomes = answers_once_each(load_run(run.bag).outcomes).values()
     assert [o.duel_id for o in outcomes if o.kind is OutcomeKind.INDIFFERENT] == [tied]
     assert verify(run.bag).ok
 
@@ -573,10 +572,7 @@ def test_resume_keeps_the_person_and_the_open_tab(browser: Any, tmp_path: Path) 
     # the bag holds every outcome published: the judge sends a journaled answer again when a
     # request for it comes back (e.g. re-published before the answer arrived under load); a
     # repeat is the same answer, and the optimizer's acceptance rule counts each duel once
-    first: dict[int, Any] = {}
-    for out in resumed.outcomes:
-        assert first.setdefault(out.duel_id, out) == out, out
-    assert sorted(first) == list(range(5))
+    assert sorted(answers_once_each(resumed.outcomes)) == list(range(5))
     rebuilt = rebuild(resumed.config, resumed.outcomes)
     assert rebuilt.driver.n_duels == 5
     assert rebuilt.refused == len(resumed.outcomes) - 5
