@@ -134,8 +134,13 @@ def test_signal_while_importing_stops_cleanly(
     point of its first second (its imports of rclpy, numpy, torch): exit 0, no traceback."""
     rng = random.Random(seed)
     bag = tmp_path / "early.mcap"
+    cmd = [sys.executable, "-c", f"from localpbo_ros.entry import {exe}; {exe}()"]
+    if exe == "param_bridge_node":  # its one required parameter: a fast start that gets past
+        # the imports before the signal still runs (waiting for its target) instead of
+        # refusing its configuration with exit 2
+        cmd += ["--ros-args", "-p", "target_node:=/pid_controller_node"]
     with _running(
-        [sys.executable, "-c", f"from localpbo_ros.entry import {exe}; {exe}()"],
+        cmd,
         bag if exe == "recorder_node" else None,
         PYTHONPROFILEIMPORTTIME="1",
     ) as proc:
