@@ -37,6 +37,29 @@ def stored() -> dict[tuple[str, str, str, str], list[dict]]:
     return groups
 
 
+def test_the_page_tabulates_exactly_the_groups_with_the_ten_seeds(stored) -> None:
+    """notes: "A group (problem, variant and algorithm) enters the tables and the claims once
+    all ten seeds are stored"; README: "every experiment run so far with 10 seeds". Stored
+    runs have no seed outside 0-9, and the page's command keeps exactly the complete groups."""
+    from localpbo_core.report import RESULTS_COMMAND
+
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    assert (
+        "A group (problem, variant and algorithm) enters the tables and the claims once all "
+        "ten seeds are stored" in notes
+    )
+    assert "with 10 seeds" in " ".join((ROOT / "README.md").read_text().split())
+    assert RESULTS_COMMAND[-2:] == ("--complete-seeds", f"0-{max(COVERAGE_SEEDS)}")
+    seeds = {k: sorted(r["seed"] for r in v) for k, v in stored.items()}
+    assert {k: s for k, s in seeds.items() if not set(s) <= set(COVERAGE_SEEDS)} == {}
+    page = (ROOT / "docs" / "RESULTS.md").read_text()
+    for (spec, problem, variant, algorithm), s in seeds.items():
+        heading = f"## {spec}: {problem}" + (f" ({variant})" if variant else "")
+        section = page.split(heading + "\n", 1)[1].split("\n## ", 1)[0] if heading in page else ""
+        listed = f"| {algorithm} | 10 |" in section
+        assert listed == (s == list(COVERAGE_SEEDS)), (spec, problem, variant, algorithm)
+
+
 def test_out_of_model_sobol_and_glisp_are_the_within_model_runs() -> None:
     """notes, docs/reproducing.md: Sobol and GLISp take no GP hyperparameters, so every one
     of their out-of-model runs has the candidates (in task units) and answers of its
