@@ -121,9 +121,7 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     runs = []
     for path in run_files(paths):
         run, code = read_stored_run(path)
-        own = (
-            {"settings": run.settings} if code is None else {"settings": run.settings, "code": code}
-        )
+        own = {"settings": run.settings, "code": code}
         runs.append(replace(run, code=tables.known_code(path, own)))
     if not runs:
         raise SettingError("results", "no stored runs found")

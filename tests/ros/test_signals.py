@@ -135,9 +135,9 @@ def test_signal_while_importing_stops_cleanly(
     rng = random.Random(seed)
     bag = tmp_path / "early.mcap"
     cmd = [sys.executable, "-c", f"from localpbo_ros.entry import {exe}; {exe}()"]
-    if exe == "param_bridge_node":  # its one required parameter: a fast start that gets past
-        # the imports before the signal still runs (waiting for its target) instead of
-        # refusing its configuration with exit 2
+    if exe == "param_bridge_node":
+        # its one required parameter: a start that gets past its imports before the signal
+        # waits for its target instead of refusing its configuration (exit 2)
         cmd += ["--ros-args", "-p", "target_node:=/pid_controller_node"]
     with _running(
         cmd,
