@@ -194,6 +194,54 @@ def test_notes_state_the_rerun_hopper_qeubo_finals() -> None:
     assert finals == [1600, 131, 1070, 797]
 
 
+def test_notes_state_the_second_round_of_code_reruns() -> None:
+    """notes, the second round of re-runs with the storing commit's code: which commits'
+    re-runs were the same bit for bit with today's code, which parted and where, and how many
+    runs made from their own group came out as stored, against ``equivalent_code.json``."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    entries = json.loads((RESULTS / "equivalent_code.json").read_text())
+    by_commit = defaultdict(list)
+    for e in entries:
+        by_commit[(e["algorithm"], e["commit"][:7])].append(e)
+    same = [
+        ("gipbo", "15b3128"),
+        ("hbei", "f865f62"),
+        ("hbei", "8517104"),
+        ("qeubo", "ffbbc6e"),
+        ("qeubo", "88a41bf"),
+        ("sobol", "cc30989"),
+        *[("turpbo", c) for c in ("d9de676", "c9c75d5", "37775bc", "9dc47de", "c5745f7")],
+    ]
+    parted = [
+        *[(a, "cc30989") for a in ("gipbo", "gipbor", "prefsqp", "qeubo", "turpbo")],
+        ("prefsqp", "ab922a0"),
+        ("hbei", "208969e"),
+        ("turpbo", "120cd4b"),
+    ]
+    assert f"{len(same)} of the {len(same) + len(parted)} were re-made bit for bit" in notes
+    for key in same:
+        assert any(e["identical"] == e["candidates"] for e in by_commit[key]), key
+    firsts = []
+    for key in parted:
+        found = [e for e in by_commit[key] if e["identical"] < e["candidates"]]
+        assert found, key
+        firsts += [e["identical"] for e in found]
+    assert f"parted from today's code at candidate {min(firsts)}–{max(firsts)}" in notes
+    # the rest re-made a Hartmann 6 run of the synthetic spec, or (GIPBO at 15b3128) a run
+    # another commit stored, with --commit
+    own = [
+        e
+        for key in same + parted
+        for e in by_commit[key]
+        if "/synthetic/" not in e["run"] and key != ("gipbo", "15b3128")
+    ]
+    kept = sum(e["stored_identical"] == e["candidates"] for e in own)
+    assert (
+        f"of the {len(own)} runs re-made from their own group with their own commit, "
+        f"{kept} came out bit for bit as stored"
+    ) in notes
+
+
 def test_notes_state_glisp_time_at_d64() -> None:
     """notes, "GLISp at high n": seed 0 of GLISp on the 64-D l = 0.1 GP paths within model took
     876 s at a core share of 0.72 (the stored run)."""
