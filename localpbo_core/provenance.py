@@ -21,7 +21,12 @@ stored without a block is dated by the commit that stored it (``stored_code.json
 :func:`stored_by_commit`), and a recorded re-run that gave the same trace bit for bit with
 the old and today's code (``equivalent_code.json``, :func:`equivalent_digests`) makes an older
 block "same behaviour". ``localpbo sweep --rerun-changed`` runs again every run whose state is
-"changed since" or "none stored".
+"changed since" or "none stored", and the re-run carries a ``replaced`` block
+(:func:`replaced_block`): which code made the run it replaced, how many leading candidates the
+two share bit for bit, whether their duels got the same answers, and the old final values,
+so what a re-run changed stays on record after the old file is gone. Re-runs stored before
+re-runs carried it are described by ``replaced_runs.json``
+(:mod:`localpbo_core.experiments.replaced`, from the repository's history).
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ import subprocess
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 """The checkout (or installed tree) holding ``localpbo_core`` and ``sims``."""
@@ -292,3 +299,56 @@ def same_behaviour(algorithm: str, digest: str, pairs: dict[str, set[tuple[str, 
         seen |= fresh
         frontier.extend(sorted(fresh))
     return False
+
+
+def identical_candidates(a: dict[str, Any], b: dict[str, Any]) -> tuple[int, float]:
+    """Leading candidates of the run documents ``a`` and ``b`` equal bit for bit, and the
+    largest coordinate gap at the first that differs (0 if none does, inf if its dimension
+    differs)."""
+    xs = [np.asarray(c["native"], dtype=np.float64) for c in a["candidates"]]
+    ys = [np.asarray(c["native"], dtype=np.float64) for c in b["candidates"]]
+    same = 0
+    for x, y in zip(xs, ys, strict=False):
+        if x.shape == y.shape and np.array_equal(x, y):
+            same += 1
+            continue
+        return same, float(np.max(np.abs(x - y))) if x.shape == y.shape else float("inf")
+    return same, 0.0
+
+
+def _answer_keys(doc: dict[str, Any]) -> list[tuple[Any, ...]]:
+    """Each duel's pair, winner and kind (runs stored before answers carried a kind had only
+    decisive ones)."""
+    return [
+        (a["first"], a["second"], a.get("winner"), a.get("kind", "decisive"))
+        for a in doc["answers"]
+    ]
+
+
+def replaced_block(
+    old: dict[str, Any], new: dict[str, Any], old_code: dict[str, Any] | None
+) -> dict[str, Any]:
+    """The ``replaced`` block of the re-run ``new`` of the stored run ``old``, whose known code
+    (:func:`known_code`) is ``old_code``:
+
+    * ``commit``, ``algorithm_digest``, ``stored_by_commit``: the old run's code (None when
+      unknown; ``stored_by_commit`` when it is dated by the commit that stored it);
+    * ``candidates`` (the old run's count) and ``identical``: leading candidates equal bit for
+      bit; ``first_gap``: the largest coordinate gap where they first part (None: the
+      dimension differs);
+    * ``same_answers``: every duel has the same first, second, winner and kind;
+    * ``best_seen``, ``cumulative``: the old run's final best-seen and cumulative true values.
+    """
+    identical, gap = identical_candidates(old, new)
+    code = old_code or {}
+    return {
+        "commit": code.get("commit"),
+        "algorithm_digest": code.get("algorithm_digest"),
+        "stored_by_commit": bool(code.get("stored_by_commit")),
+        "candidates": len(old["candidates"]),
+        "identical": identical,
+        "first_gap": gap if np.isfinite(gap) else None,
+        "same_answers": _answer_keys(old) == _answer_keys(new),
+        "best_seen": float(old["records"][-1]["best_seen"]),
+        "cumulative": float(old["records"][-1]["cumulative"]),
+    }

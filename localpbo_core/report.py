@@ -73,6 +73,11 @@ class StoredRun(RunLabels):
     one the digests of the commit that stored it (``stored_by_commit``); None if neither is
     known. ``same_behaviour`` is set when recorded re-runs show its algorithm's code since
     then left the run's trace unchanged (:func:`~localpbo_core.provenance.same_behaviour`)."""
+    replaced: dict[str, Any] | None = None
+    """For a re-run (``localpbo sweep --rerun-changed``), what the run it replaced was and how
+    far the two agree (:func:`~localpbo_core.provenance.replaced_block`): the run's own
+    ``replaced`` block, or the folder's ``replaced_runs.json`` entry
+    (:mod:`localpbo_core.experiments.replaced`)."""
 
 
 # ---------------------------------------------------------------------- loading
@@ -105,6 +110,7 @@ def read_stored_run(path: Path) -> tuple[StoredRun, dict[str, Any] | None]:
         optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
         core_share=_core_share(doc),
         reused_from=str(meta.get("reused_from", "")),
+        replaced=doc.get("replaced") if isinstance(doc.get("replaced"), dict) else None,
     )
     code = doc.get("code")
     return run, code if isinstance(code, dict) else None
@@ -114,15 +120,25 @@ def load_runs(paths: Iterable[str | Path]) -> list[StoredRun]:
     """Read every run under ``paths`` (:func:`run_files`, each by :func:`read_stored_run`). A
     folder's ``stored_code.json`` dates the runs stored without a code version by the commit
     that stored them, its ``equivalent_code.json`` says which code changes left traces
-    unchanged (:mod:`localpbo_core.experiments.stored_code`,
-    :mod:`localpbo_core.experiments.drift`)."""
+    unchanged, its ``replaced_runs.json`` what the re-runs committed without a ``replaced``
+    block replaced (:mod:`localpbo_core.experiments.stored_code`,
+    :mod:`localpbo_core.experiments.drift`, :mod:`localpbo_core.experiments.replaced`)."""
+    from localpbo_core.experiments.replaced import REPLACED_TABLE, load_replaced
+
     paths = list(paths)
-    tables = ProvenanceTables(Path(p) for p in paths if Path(p).is_dir())
+    folders = [Path(p) for p in paths if Path(p).is_dir()]
+    tables = ProvenanceTables(folders)
+    replaced: dict[Path, dict[str, Any]] = {}
+    for folder in folders:
+        replaced.update(load_replaced(folder / REPLACED_TABLE))
     runs = []
     for path in run_files(paths):
         run, code = read_stored_run(path)
         own = {"settings": run.settings, "code": code}
-        runs.append(replace(run, code=tables.known_code(path, own)))
+        run = replace(run, code=tables.known_code(path, own))
+        if run.replaced is None:
+            run = replace(run, replaced=replaced.get(path.resolve()))
+        runs.append(run)
     if not runs:
         raise SettingError("results", "no stored runs found")
     keys = [(r.spec, r.problem_label, r.algorithm_label, r.variant, r.seed) for r in runs]
@@ -354,6 +370,62 @@ def provenance_table(runs: Sequence[StoredRun]) -> list[str]:
             f"| {_group_list(unknown, len(groups)) or '—'} |"
         )
     return lines
+
+
+def rerun_table(runs: Sequence[StoredRun]) -> list[str]:
+    """Per group (spec, problem, variant, algorithm) with re-runs (:attr:`StoredRun.replaced`):
+    how many runs were re-run, the commits that had made the runs they replaced, how many
+    re-runs equal the old run bit for bit and how many got the same answer in every duel, the
+    largest gap where a re-run first parts from its old run, and the re-run seeds' final
+    best-seen before and after (mean ± sample std). Empty without re-runs."""
+    groups: dict[tuple[str, str, str, str], list[StoredRun]] = {}
+    for r in runs:
+        if r.replaced is not None:
+            key = (r.spec, r.problem_label, r.variant, r.algorithm_label)
+            groups.setdefault(key, []).append(r)
+    if not groups:
+        return []
+    lines = [
+        "| spec | problem | algorithm | re-run | replaced runs' code | same candidates "
+        "| same duel answers | first gap | final best-seen before | after |",
+        "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for (spec, problem, variant, algorithm), members in sorted(groups.items()):
+        blocks = [r.replaced for r in members if r.replaced is not None]
+        commits = sorted({str(b.get("commit") or "unknown")[:10] for b in blocks})
+        gaps = [b["first_gap"] for b in blocks if b["identical"] < b["candidates"]]
+        gap = "—" if not gaps else ("dimension" if None in gaps else f"{max(gaps):.2g}")
+        before = np.array([b["best_seen"] for b in blocks], dtype=np.float64)
+        after = np.array([r.best_seen[-1] for r in members], dtype=np.float64)
+        label = problem + (f" ({variant})" if variant else "")
+        lines.append(
+            f"| {spec} | {label} | {algorithm} | {len(blocks)} | {', '.join(commits)} "
+            f"| {sum(b['identical'] == b['candidates'] for b in blocks)} "
+            f"| {sum(bool(b['same_answers']) for b in blocks)} | {gap} "
+            f"| {_mean_std(before)} | {_mean_std(after)} |"
+        )
+    return lines
+
+
+def _rerun_section(runs: Sequence[StoredRun]) -> list[str]:
+    table = rerun_table(runs)
+    if not table:
+        return []
+    return [
+        "### Re-runs with today's code",
+        "",
+        "Stored runs that `localpbo sweep --rerun-changed` made again with today's code, "
+        "against the runs they replaced (the re-run's `replaced` block, or for re-runs "
+        "committed before runs carried one `docs/results/replaced_runs.json` from the "
+        "repository's history, `python -m localpbo_core.experiments.replaced`). *same "
+        "candidates*: re-runs equal to the old run bit for bit; *same duel answers*: re-runs "
+        "whose every duel had the same pair, winner and kind (the run took the same path, its "
+        "candidates within floating-point gaps); *first gap*: the largest coordinate gap "
+        "where a re-run first parts from its old run; finals over the re-run seeds.",
+        "",
+        *table,
+        "",
+    ]
 
 
 def drift_section(paths: Iterable[str | Path]) -> list[str]:
@@ -708,6 +780,7 @@ def write_report(
         "",
         *provenance_table(runs),
         "",
+        *_rerun_section(stored),
         *drift_section(paths),
         "## Compute time",
         "",

@@ -186,15 +186,29 @@ def _rewrite(path: Path, change) -> None:
 def test_rerun_changed_replaces_only_runs_of_older_code(spec, reference, tmp_path) -> None:
     """``--rerun-changed`` runs again a run whose algorithm digest is not today's and one
     without a code version, keeps current ones, keeps the old file until the new one is
-    stored (an interrupted re-run continues), and the re-runs equal the reference runs."""
+    stored (an interrupted re-run continues), each re-run says what it replaced (``replaced``:
+    old code, shared candidates, same duel answers, old finals), and the re-runs equal the
+    reference runs."""
     import shutil
+
+    from localpbo_core.sweep import write_run
 
     out = tmp_path / "results" / "tiny"
     shutil.copytree(reference, out)
     ids = [p.run_id for p in spec.runs()]
     changed, unknown = ids[0], ids[-1]
-    _rewrite(out / "runs" / f"{changed}.json.gz", lambda d: d["code"].update(algorithm_digest="0"))
-    _rewrite(out / "runs" / f"{unknown}.json.gz", lambda d: d.pop("code"))
+
+    def older(doc) -> None:  # older code, which parted from today's at the fourth candidate
+        doc["code"].update(algorithm_digest="0")
+        doc["candidates"][3]["native"][0] += 0.25
+
+    def unknown_code(doc) -> None:  # no code version; one duel went the other way
+        doc.pop("code")
+        answer = doc["answers"][-1]
+        answer["winner"] = answer["first"] + answer["second"] - answer["winner"]
+
+    _rewrite(out / "runs" / f"{changed}.json.gz", older)
+    _rewrite(out / "runs" / f"{unknown}.json.gz", unknown_code)
     before = {i: (out / "runs" / f"{i}.json.gz").read_bytes() for i in ids}
 
     assert main(["sweep", "tiny", "--out", str(out), "--dry-run", "--rerun-changed"]) == 0
@@ -215,6 +229,28 @@ def test_rerun_changed_replaces_only_runs_of_older_code(spec, reference, tmp_pat
     assert sorted(second.skipped) == sorted(set(ids) - {unknown})
     for i in set(ids) - {changed, unknown}:
         assert (out / "runs" / f"{i}.json.gz").read_bytes() == before[i]
+    # each re-run says what it replaced
+    for run_id, code, identical, gap, answers in (
+        (changed, "0", 3, 0.25, True),
+        (unknown, None, None, 0.0, False),
+    ):
+        path = out / "runs" / f"{run_id}.json.gz"
+        doc = read_run(path)
+        replaced = doc.pop("replaced")
+        write_run(path, doc)
+        reference_doc = read_run(reference / "runs" / f"{run_id}.json.gz")
+        n = len(reference_doc["candidates"])
+        assert replaced == {
+            "commit": None if code is None else reference_doc["code"]["commit"],
+            "algorithm_digest": code,
+            "stored_by_commit": False,
+            "candidates": n,
+            "identical": n if identical is None else identical,
+            "first_gap": pytest.approx(gap, abs=1e-15),
+            "same_answers": answers,
+            "best_seen": reference_doc["records"][-1]["best_seen"],
+            "cumulative": reference_doc["records"][-1]["cumulative"],
+        }, run_id
     assert_same_runs(spec, out, reference)
     third = sweep(spec, out, in_process=True, progress=False, rerun_changed=True)
     assert not third.finished and len(third.skipped) == 4
@@ -288,9 +324,14 @@ def test_interrupted_sweep_keeps_what_finished_and_continues(spec, reference, tm
     assert_same_runs(spec, tmp_path, reference)
 
 
+SWEEP_RUNS = 4
+"""Runs of the real sweep process the signal tests stop: more than its two workers take at
+once, so a signal after the first stored run lands mid-sweep."""
+
+
 def _sweep_cmd(out: Path) -> list[str]:
     cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "synthetic", "--out", str(out)]
-    cmd += ["--problems", "hartmann6", "--algorithms", "turpbo", "--seeds", "0-5"]
+    cmd += ["--problems", "hartmann6", "--algorithms", "turpbo", "--seeds", f"0-{SWEEP_RUNS - 1}"]
     return [*cmd, "--workers", "2", "--no-progress"]
 
 
@@ -341,7 +382,7 @@ def _left_behind(proc: subprocess.Popen[str], folder: Path, within_s: float) -> 
         time.sleep(0.2)
 
 
-@pytest.mark.timeout(1500)  # two sweeps of six TuRPBO runs on a machine that may be loaded
+@pytest.mark.timeout(1500)  # two sweeps of TuRPBO runs on a machine that may be loaded
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     """A real ``localpbo sweep`` process: the signal stops it within seconds, exit 130, the
@@ -358,13 +399,13 @@ def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     assert not ray_cleanup.holders(folder) and not folder.exists()  # at the driver's exit
     assert _left_behind(proc, folder, 10.0) == []
     finished = sorted((out / "runs").glob("*.json.gz"))
-    assert 1 <= len(finished) < 6 and "left" in stdout
+    assert 1 <= len(finished) < SWEEP_RUNS and "left" in stdout
     for path in finished:
-        assert read_run(path)["run"]["seed"] in range(6)
+        assert read_run(path)["run"]["seed"] in range(SWEEP_RUNS)
     again = subprocess.run(_sweep_cmd(out), capture_output=True, text=True, timeout=900)
     assert again.returncode == 0, again.stderr
     assert f"{len(finished)} already stored" in again.stdout
-    assert len(list((out / "runs").glob("*.json.gz"))) == 6
+    assert len(list((out / "runs").glob("*.json.gz"))) == SWEEP_RUNS
 
 
 @pytest.mark.parametrize("delay_s", [0.0, 2.0])

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from localpbo_core.provenance import identical_candidates
 
 
 @dataclass(frozen=True)
@@ -64,20 +64,6 @@ def rerun(doc: dict[str, Any]) -> dict[str, Any]:
     meta = doc["run"]
     plan = next(p for p in load_spec(meta["spec"]).runs() if p.run_id == meta["run_id"])
     return execute_run(plan)
-
-
-def _identical(a: dict[str, Any], b: dict[str, Any]) -> tuple[int, float]:
-    """Leading candidates of ``a`` and ``b`` equal bit for bit, and the largest coordinate
-    gap at the first that differs (0 if none does)."""
-    xs = [np.asarray(c["native"], dtype=np.float64) for c in a["candidates"]]
-    ys = [np.asarray(c["native"], dtype=np.float64) for c in b["candidates"]]
-    same = 0
-    for x, y in zip(xs, ys, strict=False):
-        if x.shape == y.shape and np.array_equal(x, y):
-            same += 1
-            continue
-        return same, float(np.max(np.abs(x - y))) if x.shape == y.shape else float("inf")
-    return same, 0.0
 
 
 def making_commit(doc: dict[str, Any], path: Path) -> str | None:
@@ -191,8 +177,8 @@ def why(path: Path, commit: str | None = None) -> Why:
     ).stdout.strip()
     old = rerun_at(commit, stored)
     today = rerun(stored)
-    machine, _ = _identical(stored, old)
-    code, gap = _identical(old, today)
+    machine, _ = identical_candidates(stored, old)
+    code, gap = identical_candidates(old, today)
     return Why(
         run_id=str(stored["run"]["run_id"]),
         algorithm=algorithm,
@@ -221,7 +207,7 @@ def _stored_code(doc: dict[str, Any]) -> tuple[str, str]:
 
 def compare(stored: dict[str, Any], now: dict[str, Any]) -> Drift:
     """Where ``now`` (a re-run) departs from ``stored``."""
-    identical, gap = _identical(stored, now)
+    identical, gap = identical_candidates(stored, now)
     code, changed = _stored_code(stored)
     return Drift(
         run_id=str(stored["run"]["run_id"]),
