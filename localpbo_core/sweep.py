@@ -274,10 +274,12 @@ class ReuseIndex:
 def reused_document(source: Path, plan: PlannedRun) -> dict[str, Any]:
     """The stored run at ``source`` as ``plan``'s: its ``settings`` as ``plan`` spells them
     (the same effective settings, :func:`effective_settings`) and its ``run`` block replaced
-    by ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source)."""
+    by ``plan.describe()`` plus ``reused_from`` (``<spec>/<run_id>`` of the source); without
+    the source's ``replaced`` block (the copy replaced nothing)."""
     from localpbo_core.run_documents import settings_document
 
     doc = read_run(source)
+    doc.pop("replaced", None)
     doc["settings"] = settings_document(plan.settings)
     origin = doc.get("run") or {}
     doc["run"] = {

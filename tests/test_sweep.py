@@ -523,6 +523,22 @@ def test_reuse_copies_identical_runs_and_computes_the_rest(
     assert exc.value.code == 2 and "--reuse: " in capsys.readouterr().err
 
 
+def test_a_copy_of_a_rerun_replaced_nothing(spec, reference, tmp_path) -> None:
+    """A copy (``--reuse``) of a re-run does not carry the re-run's ``replaced`` block: the
+    copy replaced no run of its own sweep."""
+    from localpbo_core.sweep import reused_document, write_run
+
+    plan = spec.runs()[0]
+    source = tmp_path / "runs" / f"{plan.run_id}.json.gz"
+    doc = read_run(run_path(reference, plan))
+    write_run(source, {**doc, "replaced": {"identical": 0}})
+    copy = reused_document(source, plan)
+    assert "replaced" not in copy
+    assert {k: v for k, v in copy.items() if k != "run"} == {
+        k: v for k, v in doc.items() if k != "run"
+    }
+
+
 def test_reuse_matches_runs_by_settings_with_options_at_their_defaults(
     spec, reference, tmp_path, monkeypatch
 ) -> None:
