@@ -10,6 +10,7 @@ import re
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import localpbo_core.report as report
@@ -180,18 +181,107 @@ def test_reproducing_states_the_measured_run_times() -> None:
     assert round(sum(walker) / len(walker), -2) == 1700
 
 
-def test_notes_state_the_rerun_hopper_qeubo_finals() -> None:
-    """notes, "Re-runs with today's code": qEUBO on Hopper with warm start, seeds 0-3, ended at
-    1600, 131, 1070 and 797 (final best-seen of the stored re-runs)."""
+def test_notes_state_what_the_reruns_changed() -> None:
+    """notes, "Re-runs with today's code": the counts and means against the re-runs' records
+    as the page's re-run table reads them (each re-run's ``replaced`` block, or
+    ``replaced_runs.json``), and the Hopper qEUBO finals before and after."""
+    from localpbo_core.provenance import identical_candidates
+
     notes = " ".join((RESULTS / "notes.md").read_text().split())
-    assert "seeds 0–3 (the rest not re-run yet)" in notes
-    assert "ended at 1600, 131, 1070 and 797 instead of" in notes
-    runs = RESULTS / "policy_warm_start" / "runs"
-    finals = []
-    for seed in range(4):
-        doc = read_run(runs / f"hopper__qeubo__seed{seed}.json.gz")
-        finals.append(round(doc["records"][-1]["best_seen"]))
-    assert finals == [1600, 131, 1070, 797]
+    runs = report.load_runs([RESULTS])
+    table = [
+        (r.spec, r.problem_label, r.algorithm_label, r.replaced)
+        for r in runs
+        if r.replaced is not None
+    ]
+    by_key = {(r.spec, r.problem_label, r.algorithm_label, r.seed): r for r in runs}
+
+    def kept(specs: tuple[str, ...], algorithm: str, problems: tuple[str, ...] = ()) -> str:
+        chosen = [
+            b
+            for spec, problem, alg, b in table
+            if spec in specs and alg == algorithm and (not problems or problem in problems)
+        ]
+        return f"{sum(b['same_answers'] for b in chosen)} of {len(chosen)}"
+
+    def before_after(spec: str, problem: str, algorithm: str) -> tuple[np.ndarray, np.ndarray]:
+        group = [by_key[spec, problem, algorithm, seed] for seed in range(10)]
+        assert all(r.replaced is not None for r in group)
+        before = np.array([r.replaced["best_seen"] for r in group if r.replaced is not None])
+        return before, np.array([r.best_seen[-1] for r in group])
+
+    within = [b for spec, problem, _, b in table if spec == "gp_within" and "64" not in problem]
+    within += [b for _, _, alg, b in table if alg == "sobol"]
+    assert all(b["identical"] == b["candidates"] for b in within)
+    assert "Within model at d ≤ 32 (fixed hyperparameters) every re-run was the old run" in notes
+    out = ("gp_out_of_model",)
+    both = [kept(out, a).split(" of ") for a in ("gipbor", "prefsqp")]
+    answers = f"{sum(int(k) for k, _ in both)} of {sum(int(n) for _, n in both)}"
+    assert f"Out of model GIPBOr and PrefSQP kept their duel answers on {answers} runs" in notes
+    k, n = kept(out, "turpbo").split(" of ")
+    assert f"{k} of its {n} runs kept their duel answers" in notes
+    for problem in ("gp32_l0.1", "gp16_l0.5", "gp16_l0.1"):
+        old, new = before_after("gp_out_of_model", problem, "turpbo")
+        assert f"{problem} {old.mean():.3f} → {new.mean():.3f}" in notes
+    turpbo = [kept(("synthetic",), "turpbo", (p,)) for p in ("hartmann6", "rosenbrock16")]
+    assert turpbo == ["10 of 10", "6 of 10"]
+    assert kept(("synthetic",), "turpbo", ("levy32", "styblinskitang64")) == "0 of 20"
+    hopper = [kept(("policy_warm_start",), a) for a in ("gipbor", "prefsqp")]
+    assert hopper == ["8 of 10", "9 of 10"]
+    assert "GIPBOr and PrefSQP kept their duel answers on 8 and 9 of 10 runs" in notes
+    early = ("hartmann6", "rosenbrock16")
+
+    def first_of_the_day(spec: str, problem: str, algorithm: str) -> bool:
+        """The re-runs the notes date 2026-11-28 morning."""
+        if spec == "ablation_prefsqp_line_search":
+            return True
+        if spec == "ablation_turpbo_thompson":
+            return problem in early
+        if spec == "beyond_local_steps":
+            return (algorithm == "gipbo" and problem in early) or (
+                algorithm == "prefsqp" and problem in (*early, "levy32")
+            )
+        return False
+
+    chosen = [b for spec, problem, alg, b in table if first_of_the_day(spec, problem, alg)]
+    count = f"{sum(b['same_answers'] for b in chosen)} of {len(chosen)}"
+    assert f"Rosenbrock 16) kept their duel answers on {count} runs" in notes
+    small = ("gp8_l0.1", "gp8_l0.5", "gp16_l0.1", "gp16_l0.5")
+    counts = [kept(out, a, small) for a in ("gipbo", "hbei", "qeubo")]
+    assert (
+        f"GIPBO kept its duel answers on {counts[0]} runs, HB-EI on {counts[1]} and qEUBO on "
+        f"{counts[2]}"
+    ) in notes
+    moves = {}
+    for algorithm in ("hbei", "qeubo"):
+        for problem in small:
+            old, new = before_after("gp_out_of_model", problem, algorithm)
+            shift = abs(new.mean() - old.mean()) / old.std(ddof=1)
+            moves[shift] = f"{problem} {old.mean():.3f} → {new.mean():.3f}"
+    largest = max(moves)
+    assert f"at most {largest:.2f} of the old group's standard deviation" in notes
+    assert f"(HB-EI {moves[largest]})" in notes
+    beyond = [
+        identical_candidates(
+            read_run(RESULTS / "beyond_hybrid" / "runs" / f"{p}__turpbo__seed{seed}.json.gz"),
+            doc := read_run(RESULTS / "synthetic" / "runs" / f"{p}__turpbo__seed{seed}.json.gz"),
+        )[0]
+        == len(doc["candidates"])
+        for p in ("hartmann6", "rosenbrock16", "levy32")
+        for seed in range(10)
+    ]
+    assert all(beyond) and "came out as the synthetic re-runs bit for bit" in notes
+    qeubo = [
+        b
+        for spec, problem, alg, b in table
+        if (spec, problem, alg) == ("policy_warm_start", "hopper", "qeubo")
+    ]
+    assert {b["identical"] for b in qeubo} == {166}
+    assert "shared the first 166 candidates" in notes
+    assert "ending at 1600, 131, 1070 and 797 instead of 2038, 185, 961 and 254" in notes
+    group = [by_key["policy_warm_start", "hopper", "qeubo", seed] for seed in range(4)]
+    assert [round(r.best_seen[-1]) for r in group] == [1600, 131, 1070, 797]
+    assert [round(r.replaced["best_seen"]) for r in group if r.replaced] == [2038, 185, 961, 254]
 
 
 def test_notes_state_the_second_round_of_code_reruns() -> None:
@@ -235,11 +325,45 @@ def test_notes_state_the_second_round_of_code_reruns() -> None:
         for e in by_commit[key]
         if "/synthetic/" not in e["run"] and key != ("gipbo", "15b3128")
     ]
+    hartmann = {
+        key
+        for key in same + parted
+        if any("/synthetic/runs/hartmann6__" in e["run"] for e in by_commit[key])
+    }
+    assert (
+        f"{len(own)} from a group that commit stored, {len(hartmann)} of Hartmann 6 with `--commit`"
+    ) in notes
+    assert len(own) + len(hartmann) + 1 == len(same) + len(parted)
     kept = sum(e["stored_identical"] == e["candidates"] for e in own)
     assert (
         f"of the {len(own)} runs re-made from their own group with their own commit, "
         f"{kept} came out bit for bit as stored"
     ) in notes
+
+
+def test_prefsqp_noise_tables_quote_the_stored_synthetic_groups() -> None:
+    """notes, PrefSQP under noise: the paper's settings at 10 % and the GIPBO / GIPBOr / TuRPBO
+    reference rows are the stored synthetic groups' mean final best-seen."""
+    notes = (RESULTS / "notes.md").read_text()
+
+    def mean(problem: str, algorithm: str) -> str:
+        runs = RESULTS / "synthetic" / "runs"
+        finals = [
+            read_run(runs / f"{problem}__{algorithm}__seed{seed}.json.gz")["records"][-1][
+                "best_seen"
+            ]
+            for seed in range(10)
+        ]
+        return f"{np.mean(finals):.4g}"
+
+    for problem, heading in (
+        ("hartmann6", "| Hartmann 6 |"),
+        ("rosenbrock16", "| Rosenbrock 16 |"),
+    ):
+        table = notes.split(heading, 1)[1].split("\n\n", 1)[0]
+        reference = " / ".join(mean(problem, a) for a in ("gipbo", "gipbor", "turpbo"))
+        assert f"| GIPBO / GIPBOr / TuRPBO | 0.1 | {reference} |" in table
+        assert f"| PrefSQP, paper settings | 0.1 | {mean(problem, 'prefsqp')} ± " in table
 
 
 def test_notes_state_glisp_time_at_d64() -> None:
