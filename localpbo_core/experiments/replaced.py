@@ -20,7 +20,6 @@ The results page reads both (:func:`localpbo_core.report.rerun_table`).
 
 from __future__ import annotations
 
-import argparse
 import gzip
 import json
 import os
@@ -28,7 +27,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from localpbo_core.experiments.stored_code import FOLDERS, _git, code_at, first_commits
+from localpbo_core.experiments.stored_code import (
+    FOLDERS,
+    _git,
+    code_at,
+    first_commits,
+    history_table_main,
+)
 from localpbo_core.provenance import ROOT, replaced_block
 
 SCHEMA = "localpbo/replaced-runs/v1"
@@ -109,30 +114,16 @@ def load_replaced(table: Path) -> dict[Path, dict[str, Any]]:
     return {(table.parent / rel).resolve(): block for rel, block in doc["runs"].items()}
 
 
-def dumps(doc: dict[str, Any]) -> str:
-    """The file's text (sorted keys, one entry per line)."""
-    return json.dumps(doc, indent=1, sort_keys=True) + "\n"
-
-
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    return history_table_main(
+        argv,
         prog="python -m localpbo_core.experiments.replaced",
         description=f"Write {OUTPUT}: for each committed re-run without a replaced block, what "
         "the run it replaced was (from the repository's history).",
+        output=OUTPUT,
+        build=replaced_runs,
+        summary=lambda doc: f"{len(doc['runs'])} re-runs",
     )
-    parser.add_argument(
-        "--check", action="store_true", help="compare with the committed file; write nothing"
-    )
-    args = parser.parse_args(argv)
-    text = dumps(replaced_runs(ROOT))
-    path = ROOT / OUTPUT
-    if args.check:
-        same = path.is_file() and path.read_text() == text
-        print(f"{OUTPUT}: {'up to date' if same else 'differs from what the history says'}")
-        return 0 if same else 1
-    path.write_text(text)
-    print(f"{OUTPUT}: {len(json.loads(text)['runs'])} re-runs")
-    return 0
 
 
 if __name__ == "__main__":

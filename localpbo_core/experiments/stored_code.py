@@ -30,7 +30,7 @@ import argparse
 import json
 import os
 import subprocess
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -185,26 +185,45 @@ def dumps(doc: dict[str, Any]) -> str:
     return json.dumps(doc, indent=1, sort_keys=True) + "\n"
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m localpbo_core.experiments.stored_code",
-        description=f"Write {OUTPUT}: the commit that stored each committed run without a "
-        "code version, and that commit's code digests.",
-    )
+def history_table_main(
+    argv: Sequence[str] | None,
+    *,
+    prog: str,
+    description: str,
+    output: str,
+    build: Callable[[Path], dict[str, Any]],
+    summary: Callable[[dict[str, Any]], str],
+) -> int:
+    """The command line of a table the repository's history determines (this module's,
+    :mod:`localpbo_core.experiments.replaced`): write ``output`` (relative to the checkout)
+    from ``build(ROOT)`` and print ``summary`` of it, or with ``--check`` only compare (exit 1
+    if the file differs)."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument(
         "--check", action="store_true", help="compare with the committed file; write nothing"
     )
     args = parser.parse_args(argv)
-    text = dumps(stored_code(ROOT))
-    path = ROOT / OUTPUT
+    text = dumps(build(ROOT))
+    path = ROOT / output
     if args.check:
         same = path.is_file() and path.read_text() == text
-        print(f"{OUTPUT}: {'up to date' if same else 'differs from what the history says'}")
+        print(f"{output}: {'up to date' if same else 'differs from what the history says'}")
         return 0 if same else 1
     path.write_text(text)
-    doc = json.loads(text)
-    print(f"{OUTPUT}: {len(doc['runs'])} runs, {len(doc['commits'])} commits")
+    print(f"{output}: {summary(json.loads(text))}")
     return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return history_table_main(
+        argv,
+        prog="python -m localpbo_core.experiments.stored_code",
+        description=f"Write {OUTPUT}: the commit that stored each committed run without a "
+        "code version, and that commit's code digests.",
+        output=OUTPUT,
+        build=stored_code,
+        summary=lambda doc: f"{len(doc['runs'])} runs, {len(doc['commits'])} commits",
+    )
 
 
 if __name__ == "__main__":
