@@ -73,7 +73,9 @@ def replaced_by_history(root: Path) -> dict[str, tuple[str, str]]:
 
 
 def _blob_doc(root: Path, blob: str) -> dict[str, Any]:
-    return json.loads(gzip.decompress(_git(root, "cat-file", "blob", blob)))
+    from localpbo_core.sweep import decode_run
+
+    return decode_run(gzip.decompress(_git(root, "cat-file", "blob", blob)), f"blob {blob}")
 
 
 def replaced_runs(root: Path = ROOT) -> dict[str, Any]:
