@@ -1,5 +1,6 @@
 """Statistics of ``localpbo report``: Holm against statsmodels, the paired Wilcoxon test
-against scipy and a published example, the best/underline marking."""
+against scipy and a published example (the sign-flip permutation path bit for bit), the
+best/underline marking."""
 
 from __future__ import annotations
 
@@ -10,7 +11,13 @@ import pytest
 from scipy.stats import wilcoxon
 from statsmodels.stats.multitest import multipletests
 
-from localpbo_core.experiments.comparisons import compare, holm, paired_wilcoxon
+from localpbo_core.experiments.comparisons import (
+    EXACT_FLIPS_MAX,
+    compare,
+    holm,
+    paired_wilcoxon,
+    sign_flip_pvalue,
+)
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -70,6 +77,44 @@ def test_paired_wilcoxon_matches_scipy_and_a_published_value() -> None:
     x, y = rng.normal(size=12), rng.normal(0.5, size=12)
     assert paired_wilcoxon(x, y) == wilcoxon(x, y).pvalue
     assert paired_wilcoxon([1.0, 2.0], [1.0, 2.0]) == 1.0
+
+
+def _tied_pairs(seed: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Paired samples with ties among |x - y| and, for odd seeds, zero differences."""
+    rng = np.random.default_rng(seed)
+    x = np.round(rng.normal(size=n), 1)
+    y = np.round(rng.normal(size=n), 1)
+    y[0] = x[0] - 0.5
+    if n > 1:
+        y[1] = x[1] + 0.5  # |d| tied with the first pair
+    if seed % 2 and n > 2:
+        y[2] = x[2]  # a zero difference
+    return x, y
+
+
+@pytest.mark.parametrize(
+    ("seed", "n"), [(s, n) for s, n in enumerate((1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 10, 10, 11))]
+)
+def test_sign_flip_path_equals_scipy_bit_for_bit(seed: int, n: int) -> None:
+    # With ties or zeros and n <= 13 scipy's wilcoxon runs an exact permutation test; the
+    # vectorised one must give the same float, not a close one.
+    x, y = _tied_pairs(seed, n)
+    assert paired_wilcoxon(x, y) == float(wilcoxon(x, y).pvalue)
+    assert sign_flip_pvalue(x - y) == float(wilcoxon(x, y).pvalue)
+
+
+def test_sign_flip_path_at_its_limits() -> None:
+    x, y = _tied_pairs(21, EXACT_FLIPS_MAX)
+    assert paired_wilcoxon(x, y) == float(wilcoxon(x, y).pvalue)
+    d = np.array([1.0, -1.0, 2.0, -2.0, 0.0, 3.0])  # every |d| tied in pairs, one zero
+    assert sign_flip_pvalue(d) == float(wilcoxon(d).pvalue)
+    assert sign_flip_pvalue(np.array([5.0])) == 1.0  # one flip each way: p = 2 * 1/2
+    x, y = _tied_pairs(22, EXACT_FLIPS_MAX + 1)  # scipy's asymptotic branch, not ours
+    assert paired_wilcoxon(x, y) == float(wilcoxon(x, y).pvalue)
+    with pytest.raises(ValueError, match="1 to 13"):
+        sign_flip_pvalue(np.zeros(EXACT_FLIPS_MAX + 1))
+    with pytest.raises(ValueError, match="equal 1-D shapes"):
+        paired_wilcoxon([1.0, 2.0], [1.0])
 
 
 def test_compare_marks_best_and_ties() -> None:
