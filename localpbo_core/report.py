@@ -499,6 +499,103 @@ def coverage_specs(runs: Sequence[StoredRun]) -> list[str]:
     return sorted(set(PAPER_SPECS) | (stored & set(bundled_specs())))
 
 
+def _stored_seeds(runs: Sequence[StoredRun]) -> dict[tuple[str, str, str, str], set[int]]:
+    """Seeds stored per (spec, problem, variant, algorithm) label."""
+    seeds: dict[tuple[str, str, str, str], set[int]] = {}
+    for r in runs:
+        seeds.setdefault((r.spec, r.problem_label, r.variant, r.algorithm_label), set()).add(r.seed)
+    return seeds
+
+
+def _not_in_paper(spec: Any, missing: Sequence[tuple[str, str, str]]) -> list[tuple[str, str, str]]:
+    """The groups among ``missing`` of a main experiment whose algorithm the paper's App. E
+    table has no time for on that problem (the paper did not run them, e.g. HB-EI and GIPBO
+    beyond 32 dimensions)."""
+    entries = {p.label: p for p in spec.problems}
+    out: list[tuple[str, str, str]] = []
+    for p, v, a in missing:
+        entry = entries[p]
+        key = problem_key(entry.name, dict(entry.options), spec.within_model)
+        if not v and key in PAPER_SECONDS and paper_seconds(key, a) is None:
+            out.append((p, v, a))
+    return out
+
+
+def completion_commands(
+    runs: Sequence[StoredRun], specs: Sequence[str], inputs: Sequence[str | Path]
+) -> list[str]:
+    """``localpbo sweep`` commands that store the groups of ``specs`` missing at
+    :data:`COVERAGE_SEEDS`, except groups of the paper's specs (:data:`PAPER_SPECS`) that the
+    paper did not run (:func:`_not_in_paper`).
+
+    A command's problems × variants × algorithms are missing groups exactly (groups that share
+    their missing algorithms and variants share a command), so it runs nothing else: a sweep
+    skips stored runs. Its ``--out`` is the folder under ``inputs`` (the report's run folders,
+    as given) that holds the spec's runs, the first input's when none does. ``--reuse`` names
+    every other spec's folder with a complete group of the same problem and algorithm labels
+    in the same model setting (within or out of model); the sweep copies from it only runs of
+    the same settings (``localpbo sweep --reuse``), e.g. the paper specs' TuRPBO runs that a
+    ``beyond_*`` spec compares with."""
+    from localpbo_core.experiments import load_spec
+
+    seeds = _stored_seeds(runs)
+    wanted = set(COVERAGE_SEEDS)
+    ordered = sorted(wanted)
+    consecutive = ordered == list(range(ordered[0], ordered[-1] + 1))
+    span = f"{ordered[0]}-{ordered[-1]}" if consecutive else ",".join(map(str, ordered))
+    roots = [Path(p).as_posix() for p in inputs]
+    within = {r.spec: r.within_model for r in runs}
+
+    def folder(name: str) -> str:
+        held = [root for root in roots if (Path(root) / name / "runs").is_dir()]
+        return f"{(held or roots)[0]}/{name}"
+
+    lines = []
+    for name in specs:
+        spec = load_spec(name, validate=False)
+        missing = [
+            (p.label, v.label, a.label)
+            for p in spec.problems
+            for v in spec.variants
+            for a in spec.algorithms
+            if seeds.get((spec.name, p.label, v.label, a.label), set()) & wanted != wanted
+        ]
+        skipped = set(_not_in_paper(spec, missing)) if spec.name in PAPER_SPECS else set()
+        algorithms: dict[tuple[str, str], set[str]] = {}
+        for key in missing:
+            if key not in skipped:
+                algorithms.setdefault(key[:2], set()).add(key[2])
+        problems: dict[tuple[tuple[str, ...], str], list[str]] = {}
+        for (p, v), names in algorithms.items():
+            problems.setdefault((tuple(sorted(names)), v), []).append(p)
+        variants: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
+        for (algs, v), labels in problems.items():
+            variants.setdefault((algs, tuple(sorted(labels))), []).append(v)
+        for (algs, ps), vs in sorted(variants.items(), key=lambda kv: (kv[0][1], kv[0][0])):
+            donors = sorted(
+                {
+                    other
+                    for (other, p, v, a), have in seeds.items()
+                    if other != spec.name
+                    and not v
+                    and have >= wanted
+                    and within.get(other) == spec.within_model
+                    and p in ps
+                    and a in algs
+                    and "" in vs
+                }
+            )
+            words = ["localpbo", "sweep", spec.name, "--out", folder(spec.name)]
+            words += ["--problems", ",".join(ps), "--algorithms", ",".join(algs)]
+            if any(vs):
+                words += ["--variants", ",".join(sorted(vs))]
+            words += ["--seeds", span]
+            for other in donors:
+                words += ["--reuse", folder(other)]
+            lines.append(" ".join(words))
+    return lines
+
+
 def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]:
     """Per bundled spec: its groups (problem × variant × algorithm) and runs at
     :data:`COVERAGE_SEEDS`, how many of them are stored in ``runs``, and the groups not
@@ -507,9 +604,7 @@ def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]
     e.g. HB-EI and GIPBO beyond 32 dimensions, was not run in the paper)."""
     from localpbo_core.experiments import load_spec
 
-    seeds: dict[tuple[str, str, str, str], set[int]] = {}
-    for r in runs:
-        seeds.setdefault((r.spec, r.problem_label, r.variant, r.algorithm_label), set()).add(r.seed)
+    seeds = _stored_seeds(runs)
     wanted = set(COVERAGE_SEEDS)
     lines = [
         f"| spec | paper | groups with seeds {min(wanted)}–{max(wanted)} | runs "
@@ -518,7 +613,6 @@ def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]
     ]
     for name in specs:
         spec = load_spec(name, validate=False)
-        entries = {p.label: p for p in spec.problems}
         keys = [
             (p.label, v.label, a.label)
             for p in spec.problems
@@ -529,12 +623,7 @@ def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]
         complete = [k for k in keys if have[k] == wanted]
         stored = sum(len(v) for v in have.values())
         missing = [k for k in keys if have[k] != wanted]
-        unpaper = []
-        for p, v, a in missing:
-            entry = entries[p]
-            key = problem_key(entry.name, dict(entry.options), spec.within_model)
-            if not v and key in PAPER_SECONDS and paper_seconds(key, a) is None:
-                unpaper.append((p, v, a))
+        unpaper = _not_in_paper(spec, missing)
         n = len(spec.algorithms)
         lines.append(
             f"| {spec.name} | {spec.paper} | {len(complete)} of {len(keys)} | {stored} of "
@@ -756,6 +845,16 @@ def write_report(
         "the specs list more seeds).",
         "",
         *coverage_table(stored, coverage_specs(stored)),
+        "",
+        "To store what is missing: each command runs only the runs not stored yet (a sweep "
+        "skips stored runs; `--dry-run` lists them first), here or on a Ray cluster with "
+        "`--address auto` (docs/reproducing.md). `--reuse` names the folders with runs of the "
+        "same problem and algorithm in the same model setting; the sweep copies from them only "
+        "runs of the same settings.",
+        "",
+        "```",
+        *completion_commands(stored, coverage_specs(stored), paths),
+        "```",
         "",
         "## Noise",
         "",

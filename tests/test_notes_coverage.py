@@ -374,3 +374,101 @@ def test_notes_state_glisp_time_at_d64() -> None:
     doc = read_run(RESULTS / "gp_within" / "runs" / "gp64_l0.1__glisp__seed0.json.gz")
     assert round(doc["run_seconds"]) == 876
     assert round(doc["cpu_seconds"] / doc["run_seconds"], 2) == 0.72
+
+
+def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) -> None:
+    """Fabricated runs of two specs: the commands name each spec's missing groups as exact
+    products (problems × algorithms), leave out the groups the paper did not run (Walker2d
+    GIPBO and HB-EI), write where the spec's runs are, and reuse the complete groups of the
+    same labels elsewhere."""
+    from localpbo_core.report import StoredRun, completion_commands
+
+    def runs(spec: str, problem: str, algorithm: str, seeds: range) -> list[StoredRun]:
+        return [
+            StoredRun(
+                spec=spec,
+                problem_label=problem,
+                algorithm_label=algorithm,
+                variant="",
+                seed=s,
+                within_model=False,
+                settings={},
+                best_seen=np.zeros(1),
+                cumulative=np.zeros(1),
+                optimizer_seconds=0.0,
+            )
+            for s in seeds
+        ]
+
+    ten = range(10)
+    warm = load_spec("policy_warm_start", validate=False)
+    stored = [r for a in warm.algorithms for r in runs("policy_warm_start", "hopper", a.label, ten)]
+    stored += runs("policy_warm_start", "walker2d", "turpbo", ten)
+    stored += runs("policy_warm_start", "walker2d", "qeubo", range(5))  # half a group
+    stored += runs("beyond_hybrid_policy", "hopper", "hybrid", ten)
+    (tmp_path / "b" / "policy_warm_start" / "runs").mkdir(parents=True)
+    inputs = [tmp_path / "a", tmp_path / "b"]
+    a, b = (p.as_posix() for p in inputs)
+    assert completion_commands(stored, ["beyond_hybrid_policy", "policy_warm_start"], inputs) == [
+        f"localpbo sweep beyond_hybrid_policy --out {a}/beyond_hybrid_policy --problems hopper "
+        f"--algorithms hybrid_c0.5,hybrid_local,turpbo --seeds 0-9 "
+        f"--reuse {b}/policy_warm_start",
+        f"localpbo sweep beyond_hybrid_policy --out {a}/beyond_hybrid_policy --problems walker2d "
+        f"--algorithms hybrid,hybrid_c0.5,hybrid_local,turpbo --seeds 0-9 "
+        f"--reuse {b}/policy_warm_start",
+        f"localpbo sweep policy_warm_start --out {b}/policy_warm_start --problems walker2d "
+        "--algorithms gipbor,glisp,prefsqp,qeubo,sobol --seeds 0-9",
+    ]
+    assert completion_commands(stored[: 10 * len(warm.algorithms)], ["policy_warm_start"], [b])[
+        0
+    ].endswith(
+        "--problems walker2d --algorithms gipbor,glisp,prefsqp,qeubo,sobol,turpbo --seeds 0-9"
+    )
+
+
+def test_the_pages_completion_commands_run_the_missing_runs() -> None:
+    """Every command of the page's Coverage section names its spec's own labels, and one of
+    them, dry-run, plans exactly the runs the stored data lacks."""
+    import shlex
+    import subprocess
+    import sys
+
+    page = (ROOT / "docs" / "RESULTS.md").read_text()
+    block = page.split("## Coverage", 1)[1].split("```\n", 2)[1]
+    commands = [shlex.split(line) for line in block.splitlines()]
+    assert commands, "no commands: every group stored?"
+    for words in commands:
+        spec = load_spec(words[2], validate=False)
+        flags = dict(zip(words[3::2], words[4::2], strict=True))
+        assert words[:2] == ["localpbo", "sweep"] and flags["--seeds"] == "0-9", words
+        for flag, entries in (
+            ("--problems", spec.problems),
+            ("--algorithms", spec.algorithms),
+            ("--variants", spec.variants),
+        ):
+            assert set(flags.get(flag, "").split(",")) - {""} <= {e.label for e in entries}
+    plain = [w for w in commands if "--reuse" not in w]  # each planned run then "will run"
+    words = min(plain, key=lambda w: (any(x.startswith("gp") for x in w), len(" ".join(w))))
+    done = subprocess.run(
+        [sys.executable, "-m", "localpbo_core.cli", "sweep", *words[2:], "--dry-run"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    flags = dict(zip(words[3::2], words[4::2], strict=True))
+    stored = {p.name for p in (ROOT / flags["--out"] / "runs").glob("*.json.gz")}
+    plan = load_spec(words[2], validate=False)
+    wanted = [
+        "__".join(x for x in (p.label, a.label, v.label) if x) + f"__seed{s}.json.gz"
+        for p in plan.problems
+        for v in plan.variants
+        for a in plan.algorithms
+        for s in COVERAGE_SEEDS
+        if p.label in flags["--problems"].split(",")
+        and a.label in flags["--algorithms"].split(",")
+        and (not v.label or v.label in flags.get("--variants", "").split(","))
+    ]
+    lacking = [name for name in wanted if name not in stored]
+    assert lacking and f", {len(lacking)} will run, 0 later" in done.stdout, done.stdout[-400:]
