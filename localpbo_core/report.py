@@ -521,6 +521,17 @@ def _not_in_paper(spec: Any, missing: Sequence[tuple[str, str, str]]) -> list[tu
     return out
 
 
+def _shown(path: Path) -> str:
+    """``path`` relative to the repository when inside it (the page reads the same from any
+    checkout and any working directory), else as given."""
+    from localpbo_core.provenance import ROOT
+
+    try:
+        return path.resolve().relative_to(ROOT.resolve()).as_posix()
+    except ValueError:
+        return path.as_posix()
+
+
 def completion_commands(
     runs: Sequence[StoredRun], specs: Sequence[str], inputs: Sequence[str | Path]
 ) -> list[str]:
@@ -531,11 +542,11 @@ def completion_commands(
     A command's problems × variants × algorithms are missing groups exactly (groups that share
     their missing algorithms and variants share a command), so it runs nothing else: a sweep
     skips stored runs. Its ``--out`` is the folder under ``inputs`` (the report's run folders,
-    as given) that holds the spec's runs, the first input's when none does. ``--reuse`` names
-    every other spec's folder with a complete group of the same problem and algorithm labels
-    in the same model setting (within or out of model); the sweep copies from it only runs of
-    the same settings (``localpbo sweep --reuse``), e.g. the paper specs' TuRPBO runs that a
-    ``beyond_*`` spec compares with."""
+    relative to the repository when inside it) that holds the spec's runs, the first input's
+    when none does. ``--reuse`` names every other spec's folder with a complete group of the
+    same problem and algorithm labels in the same model setting (within or out of model); the
+    sweep copies from it only runs of the same settings (``localpbo sweep --reuse``), e.g. the
+    paper specs' TuRPBO runs that a ``beyond_*`` spec compares with."""
     from localpbo_core.experiments import load_spec
 
     seeds = _stored_seeds(runs)
@@ -543,11 +554,15 @@ def completion_commands(
     ordered = sorted(wanted)
     consecutive = ordered == list(range(ordered[0], ordered[-1] + 1))
     span = f"{ordered[0]}-{ordered[-1]}" if consecutive else ",".join(map(str, ordered))
-    roots = [Path(p).as_posix() for p in inputs]
+    roots = [_shown(Path(p)) for p in inputs]
     within = {r.spec: r.within_model for r in runs}
 
     def folder(name: str) -> str:
-        held = [root for root in roots if (Path(root) / name / "runs").is_dir()]
+        held = [
+            shown
+            for shown, p in zip(roots, inputs, strict=True)
+            if (Path(p) / name / "runs").is_dir()
+        ]
         return f"{(held or roots)[0]}/{name}"
 
     lines = []
