@@ -28,6 +28,7 @@ without the software/date metadata, so the same input gives byte-identical files
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
@@ -721,14 +722,23 @@ def plot_curves(runs: Sequence[StoredRun], title: str, path: Path) -> None:
 
 
 def gp_summary_runs(runs: Sequence[StoredRun]) -> list[StoredRun]:
-    """The runs the GP summary draws: GP sample paths, algorithms as they are (an entry
-    without its own label); variants of an ablation, e.g. ``turpbo_ts_discrete``, have their
-    own tables and curves."""
-    return [
-        r
-        for r in runs
-        if r.settings["problem"] == "gp_sample" and r.algorithm_label == r.settings["algorithm"]
-    ]
+    """The runs the GP summary draws: GP sample paths at the paper's conditions, algorithms
+    as they are (an entry without its own label, e.g. not ``turpbo_ts_discrete``) and no
+    variant (the noise ablation's noise levels have their own tables and curves), each
+    experiment once (a run another spec stored with the same settings and model setting, e.g.
+    the GLISp calibration's default GLISp, counts once)."""
+    seen: set[tuple[str, bool]] = set()
+    out = []
+    for r in runs:
+        if r.settings["problem"] != "gp_sample" or r.variant:
+            continue
+        if r.algorithm_label != r.settings["algorithm"]:
+            continue
+        key = (json.dumps(r.settings, sort_keys=True), r.within_model)
+        if key not in seen:
+            seen.add(key)
+            out.append(r)
+    return out
 
 
 def plot_gp_summary(runs: Sequence[StoredRun], path: Path) -> bool:

@@ -4,6 +4,7 @@ best/underline marking."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -131,18 +132,24 @@ def test_compare_marks_best_and_ties() -> None:
 
 
 def test_gp_summary_leaves_out_ablation_variants() -> None:
+    """Only the paper's conditions, each experiment once: not an ablation's labelled entries,
+    not a noise level of the noise ablation, not a copy another spec stored."""
     from localpbo_core.report import gp_summary_runs
 
-    def run(problem: str, algorithm: str, label: str) -> StoredRun:
-        return stored_run(problem, label, {"problem": problem, "algorithm": algorithm})
+    def run(problem: str, algorithm: str, label: str, **extra: Any) -> StoredRun:
+        settings = {"problem": problem, "algorithm": algorithm, "noise_fraction": 0.1}
+        return stored_run(problem, label, {**settings, **extra})
 
     runs = [
         run("gp_sample", "turpbo", "turpbo"),
         run("gp_sample", "turpbo", "turpbo_ts_discrete"),
         run("gp_sample", "prefsqp", "prefsqp_full"),
         run("hartmann6", "sobol", "sobol"),
+        replace(run("gp_sample", "gipbo", "gipbo", noise_fraction=0.2), variant="noise0.2"),
+        replace(run("gp_sample", "turpbo", "turpbo"), spec="calibration"),  # the same settings
+        run("gp_sample", "turpbo", "turpbo", initial_design=5),
     ]
-    assert gp_summary_runs(runs) == runs[:1]
+    assert gp_summary_runs(runs) == [runs[0], runs[-1]]
 
 
 def test_compute_table_sets_the_paper_figure_beside_runs_in_its_configuration() -> None:
