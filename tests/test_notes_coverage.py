@@ -382,23 +382,10 @@ def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) ->
     GIPBO and HB-EI), write where the spec's runs are, and reuse the complete groups of the
     same labels elsewhere."""
     from localpbo_core.report import StoredRun, completion_commands
+    from tests.fabricated import stored_run
 
     def runs(spec: str, problem: str, algorithm: str, seeds: range) -> list[StoredRun]:
-        return [
-            StoredRun(
-                spec=spec,
-                problem_label=problem,
-                algorithm_label=algorithm,
-                variant="",
-                seed=s,
-                within_model=False,
-                settings={},
-                best_seen=np.zeros(1),
-                cumulative=np.zeros(1),
-                optimizer_seconds=0.0,
-            )
-            for s in seeds
-        ]
+        return [stored_run(spec, problem, algorithm, s, 0.0, 0.0) for s in seeds]
 
     ten = range(10)
     warm = load_spec("policy_warm_start", validate=False)
