@@ -862,6 +862,7 @@ def write_report(
     lines += prefsqp_diagnosis.section(
         prefsqp_diagnosis.section_folders(paths), complete_seeds=complete_seeds
     )
+    specs = coverage_specs(stored)
     lines += [
         "## Coverage",
         "",
@@ -870,7 +871,7 @@ def write_report(
         f"{len(COVERAGE_SEEDS)} seeds per group (a group: one problem, variant and algorithm; "
         "the specs list more seeds).",
         "",
-        *coverage_table(stored, coverage_specs(stored)),
+        *coverage_table(stored, specs),
         "",
         "To store what is missing: each command runs only the runs not stored yet (a sweep "
         "skips stored runs; `--dry-run` lists them first), here or on a Ray cluster with "
@@ -879,7 +880,7 @@ def write_report(
         "runs of the same settings.",
         "",
         "```",
-        *completion_commands(stored, coverage_specs(stored), paths),
+        *completion_commands(stored, specs, paths),
         "```",
         "",
         "## Noise",

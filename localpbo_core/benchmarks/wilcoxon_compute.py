@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from localpbo_core.experiments.comparisons import EXACT_FLIPS_MAX, _paired_wilcoxon
+from localpbo_core.experiments.comparisons import _paired_wilcoxon, takes_sign_flips
 
 
 def cases(count: int, pairs: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -52,12 +52,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from scipy.stats import wilcoxon
 
     data = cases(args.cases, args.pairs)
-    permutation = 0
-    for x, y in data:
-        d = np.abs((x - y)[x != y])
-        permutation += args.pairs <= EXACT_FLIPS_MAX and (
-            d.size < args.pairs or np.unique(d).size < d.size
-        )
+    permutation = sum(takes_sign_flips(x - y) for x, y in data)
     start = time.perf_counter()
     reference = [float(wilcoxon(x, y).pvalue) for x, y in data]
     scipy_s = time.perf_counter() - start

@@ -57,11 +57,20 @@ def _paired_wilcoxon(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     if x.size == 0 or np.all(x == y):
         return 1.0
     d = x - y
-    if np.all(np.isfinite(d)) and d.size <= EXACT_FLIPS_MAX:
-        nonzero = np.abs(d[d != 0])
-        if nonzero.size < d.size or np.unique(nonzero).size < nonzero.size:
-            return sign_flip_pvalue(d)
+    if takes_sign_flips(d):
+        return sign_flip_pvalue(d)
     return float(wilcoxon(x, y, alternative="two-sided").pvalue)
+
+
+def takes_sign_flips(d: np.ndarray) -> bool:
+    """Whether scipy's ``wilcoxon`` tests the differences ``d`` by its exact sign-flip
+    permutation test: finite, at most :data:`EXACT_FLIPS_MAX` of them, with a zero or a tie
+    among their absolute values."""
+    d = np.asarray(d, dtype=np.float64)
+    if d.size > EXACT_FLIPS_MAX or not np.all(np.isfinite(d)):
+        return False
+    nonzero = np.abs(d[d != 0])
+    return bool(nonzero.size < d.size or np.unique(nonzero).size < nonzero.size)
 
 
 def sign_flip_pvalue(d: np.ndarray) -> float:
