@@ -226,7 +226,7 @@ def test_notes_state_what_the_reruns_changed() -> None:
     turpbo = [kept(("synthetic",), "turpbo", (p,)) for p in ("hartmann6", "rosenbrock16")]
     assert turpbo == ["10 of 10", "6 of 10"]
     assert kept(("synthetic",), "turpbo", ("levy32", "styblinskitang64")) == "0 of 20"
-    hopper = [kept(("policy_warm_start",), a) for a in ("gipbor", "prefsqp")]
+    hopper = [kept(("policy_warm_start",), a, ("hopper",)) for a in ("gipbor", "prefsqp")]
     assert hopper == ["8 of 10", "9 of 10"]
     assert "GIPBOr and PrefSQP kept their duel answers on 8 and 9 of 10 runs" in notes
     early = ("hartmann6", "rosenbrock16")
