@@ -500,16 +500,6 @@ def coverage_specs(runs: Sequence[StoredRun]) -> list[str]:
     return sorted(set(PAPER_SPECS) | (stored & set(bundled_specs())))
 
 
-def spec_groups(spec: Any) -> list[tuple[str, str, str]]:
-    """A spec's groups as (problem, variant, algorithm) labels, in spec order."""
-    return [
-        (p.label, v.label, a.label)
-        for p in spec.problems
-        for v in spec.variants
-        for a in spec.algorithms
-    ]
-
-
 def _stored_seeds(runs: Sequence[StoredRun]) -> dict[tuple[str, str, str, str], set[int]]:
     """Seeds stored per (spec, problem, variant, algorithm) label."""
     seeds: dict[tuple[str, str, str, str], set[int]] = {}
@@ -579,9 +569,7 @@ def completion_commands(
     lines = []
     for name in specs:
         spec = load_spec(name, validate=False)
-        missing = [
-            k for k in spec_groups(spec) if seeds.get((spec.name, *k), set()) & wanted != wanted
-        ]
+        missing = [k for k in spec.groups() if seeds.get((spec.name, *k), set()) & wanted != wanted]
         skipped = set(_not_in_paper(spec, missing)) if spec.name in PAPER_SPECS else set()
         algorithms: dict[tuple[str, str], set[str]] = {}
         for key in missing:
@@ -635,7 +623,7 @@ def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]
     ]
     for name in specs:
         spec = load_spec(name, validate=False)
-        keys = spec_groups(spec)
+        keys = spec.groups()
         have = {k: seeds.get((spec.name, *k), set()) & wanted for k in keys}
         complete = [k for k in keys if have[k] == wanted]
         stored = sum(len(v) for v in have.values())

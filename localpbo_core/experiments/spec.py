@@ -153,6 +153,16 @@ class ExperimentSpec:
     variants: tuple[_Entry, ...]
     path: str = ""
 
+    def groups(self) -> list[tuple[str, str, str]]:
+        """The groups as (problem, variant, algorithm) labels, in spec order: the runs of
+        :meth:`runs` without their seeds."""
+        return [
+            (p.label, v.label, a.label)
+            for p in self.problems
+            for v in self.variants
+            for a in self.algorithms
+        ]
+
     def runs(
         self,
         problems: Sequence[str] | None = None,
