@@ -27,13 +27,26 @@ two share bit for bit, whether their duels got the same answers, and the old fin
 so what a re-run changed stays on record after the old file is gone. Re-runs stored before
 re-runs carried it are described by ``replaced_runs.json``
 (:mod:`localpbo_core.experiments.replaced`, from the repository's history).
+
+The same code does not make the same run everywhere: floating-point kernels differ between
+CPUs (torch picks its vector kernels by the CPU's instruction set, MKL its code path by the
+CPU), between library versions and between thread counts, and a last-bit difference in one
+candidate is amplified by the duels' noise draws and the model's refits. So each stored run
+also carries a ``platform`` block (:func:`platform_block`): the CPU, torch's kernel level
+(``AVX2``, ``AVX512``, ...), torch's thread count, the versions of the numerical libraries
+and the environment variables that change their kernels. A re-run's ``replaced`` block says
+whether the run it replaced came from the same platform (``same_platform``), so a re-run that
+parts from a run of the same code reads as a machine's doing only when the platforms differ.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.metadata
 import json
+import os
+import platform
 import subprocess
 from collections.abc import Iterable
 from pathlib import Path
@@ -161,6 +174,91 @@ def code_block(algorithm: str) -> dict[str, Any]:
         "commit": commit,
         "dirty": dirty,
     }
+
+
+NUMERIC_LIBRARIES = (
+    "numpy",
+    "scipy",
+    "torch",
+    "gpytorch",
+    "linear_operator",
+    "botorch",
+    "mujoco",
+    "glis",
+)
+"""The distributions whose kernels a run's numbers go through (those installed are recorded)."""
+
+NUMERIC_VARIABLES = (
+    "ATEN_CPU_CAPABILITY",
+    "MKL_CBWR",
+    "MKL_ENABLE_INSTRUCTIONS",
+    "MKL_DEBUG_CPU_TYPE",
+    "OPENBLAS_CORETYPE",
+)
+"""Environment variables that choose other floating-point kernels (recorded when set)."""
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name":
+                    return value.strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+@functools.cache
+def _libraries() -> dict[str, str]:
+    out: dict[str, str] = {}
+    for name in NUMERIC_LIBRARIES:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return out
+
+
+def platform_block() -> dict[str, Any]:
+    """The ``platform`` block stored with a run (module docstring): ``cpu`` (the model name),
+    ``machine`` (the architecture), ``cpu_capability`` (torch's vector-kernel level),
+    ``torch_threads``, ``python``, ``libraries`` (name to version, :data:`NUMERIC_LIBRARIES`)
+    and ``environment`` (the :data:`NUMERIC_VARIABLES` that are set). Two runs of the same
+    code and settings whose blocks are equal are expected to agree bit for bit."""
+    import torch
+
+    return {
+        "cpu": _cpu_model(),
+        "machine": platform.machine(),
+        "cpu_capability": str(torch.backends.cpu.get_cpu_capability()),
+        "torch_threads": int(torch.get_num_threads()),
+        "python": platform.python_version(),
+        "libraries": _libraries(),
+        "environment": {k: os.environ[k] for k in NUMERIC_VARIABLES if k in os.environ},
+    }
+
+
+def platform_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+    """What differs between two ``platform`` blocks, one ``"field: old -> new"`` per field
+    (library versions and environment variables one by one); empty when they are equal."""
+
+    def flat(block: dict[str, Any]) -> dict[str, str]:
+        out: dict[str, str] = {}
+        for key, value in block.items():
+            if isinstance(value, dict):
+                out.update({f"{key}.{k}": str(v) for k, v in value.items()})
+            else:
+                out[key] = str(value)
+        return out
+
+    a, b = flat(old), flat(new)
+    return [
+        f"{k}: {a.get(k, '-')} -> {b.get(k, '-')}"
+        for k in sorted(set(a) | set(b))
+        if a.get(k) != b.get(k)
+    ]
 
 
 def stale_algorithms(docs: Iterable[dict[str, Any]]) -> dict[str, str]:
@@ -337,6 +435,8 @@ def replaced_block(
       bit; ``first_gap``: the largest coordinate gap where they first part (None: the
       dimension differs);
     * ``same_answers``: every duel has the same first, second, winner and kind;
+    * ``same_platform``: the two runs' ``platform`` blocks (:func:`platform_block`) are equal
+      (None when the old run has none);
     * ``best_seen``, ``cumulative``: the old run's final best-seen and cumulative true values.
     """
     identical, gap = identical_candidates(old, new)
@@ -349,6 +449,11 @@ def replaced_block(
         "identical": identical,
         "first_gap": gap if np.isfinite(gap) else None,
         "same_answers": _answer_keys(old) == _answer_keys(new),
+        "same_platform": (
+            old["platform"] == new.get("platform")
+            if isinstance(old.get("platform"), dict)
+            else None
+        ),
         "best_seen": float(old["records"][-1]["best_seen"]),
         "cumulative": float(old["records"][-1]["cumulative"]),
     }

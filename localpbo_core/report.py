@@ -74,11 +74,37 @@ class StoredRun(RunLabels):
     one the digests of the commit that stored it (``stored_by_commit``); None if neither is
     known. ``same_behaviour`` is set when recorded re-runs show its algorithm's code since
     then left the run's trace unchanged (:func:`~localpbo_core.provenance.same_behaviour`)."""
+    platform: dict[str, Any] | None = None
+    """Where the run was made: its ``platform`` block
+    (:func:`~localpbo_core.provenance.platform_block`); None for runs stored before runs
+    carried one."""
     replaced: dict[str, Any] | None = None
     """For a re-run (``localpbo sweep --rerun-changed``), what the run it replaced was and how
     far the two agree (:func:`~localpbo_core.provenance.replaced_block`): the run's own
     ``replaced`` block, or the folder's ``replaced_runs.json`` entry
     (:mod:`localpbo_core.experiments.replaced`)."""
+
+
+def platform_sentence(runs: Sequence[StoredRun]) -> str:
+    """How many runs say where they were made (``platform`` block) and on which CPUs and
+    torch kernel levels, with their counts."""
+    places = Counter(
+        f"{r.platform.get('cpu')} ({r.platform.get('cpu_capability')})"
+        for r in runs
+        if r.platform is not None
+    )
+    known = sum(places.values())
+    text = (
+        "Where a run was made is in its `platform` block (the CPU, torch's kernel level and "
+        "threads, the numerical libraries' versions, the environment variables that choose "
+        "kernels; `localpbo_core/provenance.py`): the same code and settings give other digits "
+        "on another CPU (notes, **Which code made the runs, and what drifts**). "
+        f"{known} of {len(runs)} stored runs carry one"
+    )
+    if not places:
+        return text + "."
+    where = ", ".join(f"{n} on {p}" for p, n in sorted(places.items(), key=lambda i: -i[1]))
+    return f"{text}: {where}."
 
 
 # ---------------------------------------------------------------------- loading
@@ -111,6 +137,7 @@ def read_stored_run(path: Path) -> tuple[StoredRun, dict[str, Any] | None]:
         optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
         core_share=_core_share(doc),
         reused_from=str(meta.get("reused_from", "")),
+        platform=doc.get("platform") if isinstance(doc.get("platform"), dict) else None,
         replaced=doc.get("replaced") if isinstance(doc.get("replaced"), dict) else None,
     )
     code = doc.get("code")
@@ -893,6 +920,8 @@ def write_report(
         "other code than today's:",
         "",
         *provenance_table(runs),
+        "",
+        platform_sentence(runs),
         "",
         *_rerun_section(stored),
         *drift_section(paths),

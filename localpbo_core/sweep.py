@@ -19,7 +19,9 @@
   within-model flag), ``optimizer_seconds``, ``run_seconds`` and ``cpu_seconds`` (the
   run's wall and process CPU seconds: their ratio is the share of a core the run got, below
   one when other processes kept it waiting), ``code`` (which code made it,
-  :mod:`localpbo_core.provenance`) and ``effective_settings`` (the settings with every
+  :mod:`localpbo_core.provenance`), ``platform`` (where: the CPU, torch's kernel level and
+  threads, the numerical libraries' versions, :func:`localpbo_core.provenance.platform_block`)
+  and ``effective_settings`` (the settings with every
   optimizer option completed by the algorithm's defaults and the budget resolved, so a run
   says what it ran even after a default changes). The driver writes it atomically (a temporary
   file in the same folder, then ``os.replace``), with a fixed gzip time stamp.
@@ -73,6 +75,7 @@ from localpbo_core.provenance import (
     STALE_STATES,
     ProvenanceTables,
     code_block,
+    platform_block,
     replaced_block,
     run_code_state,
 )
@@ -118,6 +121,7 @@ def execute_run(plan: PlannedRun) -> dict[str, Any]:
     doc["run_seconds"] = wall
     doc["cpu_seconds"] = cpu
     doc["code"] = code_block(plan.settings.algorithm)
+    doc["platform"] = platform_block()
     effective = effective_settings(doc["settings"])
     if effective is not None:
         effective["budget"] = len(trace.records)

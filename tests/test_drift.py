@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from localpbo_core.experiments.drift import compare, table
-from localpbo_core.provenance import code_block
+from localpbo_core.provenance import code_block, platform_changes
 
 
 def _git(*args: str) -> str:
@@ -42,8 +42,35 @@ def test_first_difference_and_finals() -> None:
     same = compare(stored, stored)
     assert (same.identical, same.first_gap) == (3, 0.0)
     assert table([d])[-1] == (
-        "| hartmann6__hbei__seed1 | none | unknown | 1 of 3 | 1e-12 | 2.966 | 2.942 |"
+        "| hartmann6__hbei__seed1 | none | unknown | 1 of 3 | 1e-12 | 2.966 | 2.942 | unknown |"
     )
+
+
+def test_platform_differences_are_named() -> None:
+    """A re-run on another CPU kernel level or library version says which fields differ;
+    the same platform reads "same"."""
+    from localpbo_core.provenance import platform_block
+
+    here = {**platform_block(), "environment": {}}
+    other = "AVX512" if here["cpu_capability"] != "AVX512" else "AVX2"
+    elsewhere = {
+        **here,
+        "cpu_capability": other,
+        "libraries": {**here["libraries"], "torch": "0.0"},
+        "environment": {"MKL_CBWR": "COMPATIBLE"},
+    }
+    stored = {**_doc([[0.1]], 1.0), "platform": elsewhere}
+    now = {**_doc([[0.1]], 1.0), "platform": here}
+    assert compare(stored, now).platform == "; ".join(
+        [
+            f"cpu_capability: {other} -> {here['cpu_capability']}",
+            "environment.MKL_CBWR: COMPATIBLE -> -",
+            f"libraries.torch: 0.0 -> {here['libraries']['torch']}",
+        ]
+    )
+    assert compare(now, now).platform == "same"
+    assert platform_changes(here, here) == []
+    assert compare(_doc([[0.1]], 1.0), now).platform == "unknown"
 
 
 def test_stored_code_is_judged_against_today() -> None:

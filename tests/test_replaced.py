@@ -67,6 +67,7 @@ def test_replaced_runs_come_from_the_history(tmp_path: Path) -> None:
         "identical": 2,
         "first_gap": pytest.approx(0.05),
         "same_answers": False,
+        "same_platform": None,
         "best_seen": 2.0,
         "cumulative": 20.0,
     }

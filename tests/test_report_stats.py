@@ -269,6 +269,25 @@ def test_provenance_per_run_group_and_spec() -> None:
     assert rows[1] == "| b | 1 | 0 | 0 | — | — | every group |"
 
 
+def test_platform_sentence_counts_where_runs_were_made() -> None:
+    """The Provenance section says how many runs carry a platform block and on which CPUs
+    and torch kernel levels they were made, most first."""
+    from dataclasses import replace
+
+    from localpbo_core.report import platform_sentence
+
+    base = stored_run("hartmann6", "sobol", {"problem": "hartmann6", "algorithm": "sobol"})
+    here = {"cpu": "AMD EPYC", "cpu_capability": "AVX2"}
+    there = {"cpu": "Intel Xeon", "cpu_capability": "AVX512"}
+    runs = [replace(base, platform=here), replace(base, platform=here)]
+    runs += [replace(base, platform=there), base]
+    sentence = platform_sentence(runs)
+    assert sentence.endswith(
+        "3 of 4 stored runs carry one: 2 on AMD EPYC (AVX2), 1 on Intel Xeon (AVX512)."
+    )
+    assert platform_sentence([base]).endswith("0 of 1 stored runs carry one.")
+
+
 def test_runs_without_code_are_dated_by_their_storing_commit(tmp_path) -> None:
     """A run stored without a code block takes the digests of the commit that stored it
     (``stored_code.json`` beside the runs); an ``equivalent_code.json`` pair that leads to

@@ -14,6 +14,7 @@ import pytest
 from localpbo_core import ray_cleanup
 from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
+from localpbo_core.provenance import platform_block
 from localpbo_core.report import write_report
 from localpbo_core.run_documents import settings_document
 from localpbo_core.settings import SettingError
@@ -107,6 +108,24 @@ def test_stored_runs_say_what_they_ran(spec, reference) -> None:
         assert {k: v for k, v in effective.items() if k not in ("budget", "optimizer_options")} == {
             k: v for k, v in doc["settings"].items() if k not in ("budget", "optimizer_options")
         }
+        assert doc["platform"] == platform_block()
+
+
+def test_platform_block_names_the_kernels_a_run_went_through() -> None:
+    """The platform block holds this process's torch kernel level and threads and the
+    installed versions of the numerical libraries."""
+    import importlib.metadata
+
+    import numpy
+    import torch
+
+    block = platform_block()
+    assert block["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert block["torch_threads"] == torch.get_num_threads()
+    assert block["libraries"]["numpy"] == numpy.__version__
+    assert block["libraries"]["torch"] == importlib.metadata.version("torch")
+    assert {"botorch", "gpytorch", "scipy"} <= set(block["libraries"])
+    assert block["cpu"] and block["machine"] and block["python"].startswith("3.")
 
 
 def test_ray_sweep_equals_in_process(local_ray, spec, reference, tmp_path) -> None:
@@ -202,8 +221,9 @@ def test_rerun_changed_replaces_only_runs_of_older_code(spec, reference, tmp_pat
         doc["code"].update(algorithm_digest="0")
         doc["candidates"][3]["native"][0] += 0.25
 
-    def unknown_code(doc) -> None:  # no code version; one duel went the other way
+    def unknown_code(doc) -> None:  # no code or platform version; one duel went the other way
         doc.pop("code")
+        doc.pop("platform")
         answer = doc["answers"][-1]
         answer["winner"] = answer["first"] + answer["second"] - answer["winner"]
 
@@ -248,6 +268,7 @@ def test_rerun_changed_replaces_only_runs_of_older_code(spec, reference, tmp_pat
             "identical": n if identical is None else identical,
             "first_gap": pytest.approx(gap, abs=1e-15),
             "same_answers": answers,
+            "same_platform": None if code is None else True,
             "best_seen": reference_doc["records"][-1]["best_seen"],
             "cumulative": reference_doc["records"][-1]["cumulative"],
         }, run_id

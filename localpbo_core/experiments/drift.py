@@ -5,8 +5,10 @@ its spec (``run.spec``, ``run.run_id``), runs it in-process (as ``localpbo sweep
 --in-process`` does) and prints per run: the code version stored with it (``code`` block,
 :mod:`localpbo_core.provenance`; "none" for runs stored before runs carried one), whether its
 algorithm's sources changed since, how many leading candidates are bit-identical, the largest
-coordinate difference at the first candidate that differs, and the final best-seen stored
-and now. Nothing is written.
+coordinate difference at the first candidate that differs, the final best-seen stored
+and now, and what differs between the stored run's ``platform`` block and this machine's
+(:func:`localpbo_core.provenance.platform_block`: CPU, torch's kernel level and threads,
+library versions; "unknown" for runs stored without one). Nothing is written.
 
 ``--why`` tells drift by code from drift by machine: it also re-runs each stored run with the
 code of the commit that made it (the run's ``code.commit``, or for runs stored without one the
@@ -39,7 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from localpbo_core.provenance import identical_candidates
+from localpbo_core.provenance import identical_candidates, platform_changes
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,9 @@ class Drift:
     first_gap: float
     stored_final: float
     now_final: float
+    platform: str = "unknown"
+    """"same" when the stored run's ``platform`` block equals the re-run's, else what differs
+    (:func:`localpbo_core.provenance.platform_changes`); "unknown" for runs stored without one."""
 
 
 def rerun(doc: dict[str, Any]) -> dict[str, Any]:
@@ -209,6 +214,10 @@ def compare(stored: dict[str, Any], now: dict[str, Any]) -> Drift:
     """Where ``now`` (a re-run) departs from ``stored``."""
     identical, gap = identical_candidates(stored, now)
     code, changed = _stored_code(stored)
+    old_platform, new_platform = stored.get("platform"), now.get("platform")
+    where = "unknown"
+    if isinstance(old_platform, dict) and isinstance(new_platform, dict):
+        where = "; ".join(platform_changes(old_platform, new_platform)) or "same"
     return Drift(
         run_id=str(stored["run"]["run_id"]),
         stored_code=code,
@@ -218,6 +227,7 @@ def compare(stored: dict[str, Any], now: dict[str, Any]) -> Drift:
         first_gap=gap,
         stored_final=float(stored["records"][-1]["best_seen"]),
         now_final=float(now["records"][-1]["best_seen"]),
+        platform=where,
     )
 
 
@@ -225,14 +235,14 @@ def table(drifts: Sequence[Drift]) -> list[str]:
     """One Markdown row per run."""
     lines = [
         "| run | stored code | algorithm changed since | identical candidates "
-        "| first gap | final best-seen stored | now |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: |",
+        "| first gap | final best-seen stored | now | platform stored -> now |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | --- |",
     ]
     for d in drifts:
         lines.append(
             f"| {d.run_id} | {d.stored_code} | {d.algorithm_changed} | "
             f"{d.identical} of {d.candidates} | {d.first_gap:.3g} | {d.stored_final:.6g} | "
-            f"{d.now_final:.6g} |"
+            f"{d.now_final:.6g} | {d.platform} |"
         )
     return lines
 
