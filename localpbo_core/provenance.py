@@ -198,16 +198,27 @@ NUMERIC_VARIABLES = (
 """Environment variables that choose other floating-point kernels (recorded when set)."""
 
 
-def _cpu_model() -> str:
+CPU_FLAGS = ("sse4_2", "avx", "fma", "avx2", "avx512f", "avx512dq", "avx512vl", "avx512_bf16")
+"""The instruction-set flags that decide which vector kernels MKL and torch may pick (those the
+CPU has are recorded: a virtual machine often names only the CPU's family)."""
+
+
+@functools.cache
+def _cpu() -> tuple[str, tuple[str, ...]]:
+    model, flags = "", set[str]()
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
             for line in fh:
                 key, _, value = line.partition(":")
-                if key.strip() == "model name":
-                    return value.strip()
+                if key.strip() == "model name" and not model:
+                    model = value.strip()
+                elif key.strip() == "flags" and not flags:
+                    flags = set(value.split())
     except OSError:
         pass
-    return platform.processor() or platform.machine()
+    return model or platform.processor() or platform.machine(), tuple(
+        f for f in CPU_FLAGS if f in flags
+    )
 
 
 @functools.cache
@@ -223,14 +234,17 @@ def _libraries() -> dict[str, str]:
 
 def platform_block() -> dict[str, Any]:
     """The ``platform`` block stored with a run (module docstring): ``cpu`` (the model name),
-    ``machine`` (the architecture), ``cpu_capability`` (torch's vector-kernel level),
+    ``cpu_flags`` (the CPU's :data:`CPU_FLAGS`, space-separated), ``machine`` (the
+    architecture), ``cpu_capability`` (torch's vector-kernel level),
     ``torch_threads``, ``python``, ``libraries`` (name to version, :data:`NUMERIC_LIBRARIES`)
     and ``environment`` (the :data:`NUMERIC_VARIABLES` that are set). Two runs of the same
     code and settings whose blocks are equal are expected to agree bit for bit."""
     import torch
 
+    model, flags = _cpu()
     return {
-        "cpu": _cpu_model(),
+        "cpu": model,
+        "cpu_flags": " ".join(flags),
         "machine": platform.machine(),
         "cpu_capability": str(torch.backends.cpu.get_cpu_capability()),
         "torch_threads": int(torch.get_num_threads()),

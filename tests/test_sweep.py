@@ -14,7 +14,7 @@ import pytest
 from localpbo_core import ray_cleanup
 from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
-from localpbo_core.provenance import platform_block
+from localpbo_core.provenance import CPU_FLAGS, platform_block
 from localpbo_core.report import write_report
 from localpbo_core.run_documents import settings_document
 from localpbo_core.settings import SettingError
@@ -126,6 +126,9 @@ def test_platform_block_names_the_kernels_a_run_went_through() -> None:
     assert block["libraries"]["torch"] == importlib.metadata.version("torch")
     assert {"botorch", "gpytorch", "scipy"} <= set(block["libraries"])
     assert block["cpu"] and block["machine"] and block["python"].startswith("3.")
+    assert set(block["cpu_flags"].split()) <= set(CPU_FLAGS)
+    if block["cpu_capability"].startswith("AVX512"):
+        assert "avx512f" in block["cpu_flags"].split()
 
 
 def test_ray_sweep_equals_in_process(local_ray, spec, reference, tmp_path) -> None:
