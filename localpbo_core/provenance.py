@@ -254,6 +254,38 @@ def platform_block() -> dict[str, Any]:
     }
 
 
+def recording_platform() -> dict[str, str]:
+    """Where a bag is recorded, as an MCAP metadata record (string values): the fields of
+    :func:`platform_block` that a process can know without importing torch (the CPU and its
+    flags, the architecture, Python, ``libraries.<name>``, ``environment.<name>``) and
+    ``code.digest`` (:data:`RUN_SOURCES`) and ``code.commit``. torch's kernel level follows
+    from the flags and ``ATEN_CPU_CAPABILITY``; thread counts are the optimizer process's
+    (one per pool, :mod:`localpbo_core.threads`), not the recorder's."""
+    model, flags = _cpu()
+    commit, dirty = _commit()
+    record = {
+        "cpu": model,
+        "cpu_flags": " ".join(flags),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+        "code.digest": _digest(RUN_SOURCES),
+        "code.commit": f"{commit or ''}{'+dirty' if dirty else ''}",
+    }
+    record.update({f"libraries.{k}": v for k, v in _libraries().items()})
+    record.update({f"environment.{k}": os.environ[k] for k in NUMERIC_VARIABLES if k in os.environ})
+    return record
+
+
+def recorded_elsewhere(recorded: dict[str, str]) -> list[str]:
+    """What differs between the platform a bag was recorded on (its :func:`recording_platform`
+    record) and this process's, ignoring the commit (other commits with the same
+    ``code.digest`` run the same code); empty when nothing does."""
+    here = recording_platform()
+    return [
+        line for line in platform_changes(recorded, here) if not line.startswith("code.commit:")
+    ]
+
+
 def platform_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     """What differs between two ``platform`` blocks, one ``"field: old -> new"`` per field
     (library versions and environment variables one by one); empty when they are equal."""

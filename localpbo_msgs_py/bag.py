@@ -14,7 +14,10 @@ Foreign traffic (messages on a suite topic that are not the recorded run's: anot
 malformed, ids outside the run's range) is kept apart, under ``/localpbo/foreign/<topic>``
 (:func:`foreign_topic`), so the run's own topics hold only the run. The recorder's accounting
 (what it wrote and what it did not, by reason; whether the bag reached its cap) is one MCAP
-metadata record, ``localpbo/recorder``, written on close (:attr:`BagSummary.recorder`).
+metadata record, ``localpbo/recorder``, written on close (:attr:`BagSummary.recorder`); where
+it was recorded (CPU and its vector flags, library versions, code digest) is another,
+``localpbo/platform``, written on open (:attr:`BagSummary.platform`), because the same run
+config and outcomes re-make a model-based run bit for bit only on the same platform.
 """
 
 from __future__ import annotations
@@ -57,6 +60,9 @@ FOREIGN_PREFIX = "/localpbo/foreign/"
 ``/localpbo/foreign/<name>``."""
 RECORDER_METADATA = "localpbo/recorder"
 """Name of the metadata record holding the recorder's accounting."""
+PLATFORM_METADATA = "localpbo/platform"
+"""Name of the metadata record saying where the bag was recorded (CPU, libraries, code
+digest), written when the recorder opens the bag."""
 
 
 def foreign_topic(topic: str) -> str:
@@ -247,6 +253,7 @@ class BagWriter:
             self._writer.add_metadata(name, dict(data))
             self._position = self._stream.tell()
             self._unflushed = 0
+            self._dirty = True  # the flush thread hands it to the OS like a message
 
     def before_close(self, hook: Callable[[BagWriter], None]) -> None:
         """Call ``hook(self)`` when :meth:`close` begins (it may still write), once."""
@@ -442,6 +449,9 @@ class BagSummary:
     """The recorder's accounting (metadata record ``localpbo/recorder``; empty when the
     recorder was killed or the bag was written otherwise): ``max_bag_bytes``,
     ``max_foreign_bytes``, ``bag_full`` (``yes``/``no``) and ``count.<name>`` entries."""
+    platform: dict[str, str] = field(default_factory=dict)
+    """Where the bag was recorded (metadata record ``localpbo/platform``; empty for bags
+    recorded before bags carried it or written otherwise)."""
     whole_bytes: int | None = None
     """Where the last whole record ends (None: not measured)."""
     size_bytes: int = 0
@@ -473,6 +483,12 @@ class BagSummary:
         ]
         if self.start_ns is not None:
             lines.append(f"start/end: {self.start_ns} .. {self.end_ns} ns")
+        if self.platform:
+            p = self.platform
+            lines.append(
+                f"recorded on: {p.get('cpu', '?')} ({p.get('cpu_flags', '?')}), "
+                f"torch {p.get('libraries.torch', '?')}, code {p.get('code.digest', '?')}"
+            )
         lines.extend(self.recorder_lines())
         lines.append("topics:")
         width = max((len(t.topic) for t in self.topics), default=0)
@@ -554,5 +570,10 @@ def summarize(path: str | os.PathLike[str]) -> BagSummary:
         state.error,
         state.metadata.get(RECORDER_METADATA, {}),
     )
-    summary = replace(summary, whole_bytes=state.whole_bytes, size_bytes=path_size)
+    summary = replace(
+        summary,
+        platform=state.metadata.get(PLATFORM_METADATA, {}),
+        whole_bytes=state.whole_bytes,
+        size_bytes=path_size,
+    )
     return summary

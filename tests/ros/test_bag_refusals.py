@@ -16,9 +16,10 @@ from localpbo_ros.bagtools import NotABagError, load_run
 from localpbo_ros.commands import main as cli_main
 from localpbo_ros.replay import resumable, verify
 
-from localpbo_msgs_py import RunConfig
-from localpbo_msgs_py.bag import BagWriter, read_messages, summarize
-from localpbo_msgs_py.topics import ALL_TOPICS, RUN_CONFIG, STATUS
+from localpbo_core.provenance import recording_platform
+from localpbo_msgs_py import CandidateMsg, RunConfig
+from localpbo_msgs_py.bag import PLATFORM_METADATA, BagWriter, read_messages, summarize
+from localpbo_msgs_py.topics import ALL_TOPICS, CANDIDATE, RUN_CONFIG, STATUS
 
 BAG = Path(__file__).resolve().parents[2] / "bags" / "swimmer_sobol_s0.mcap"
 
@@ -75,6 +76,54 @@ def test_an_edited_run_config_is_refused(edit: str, tmp_path: Path, capsys: Any)
     assert err.startswith(f"localpbo run: --resume: {bag}: "), err
     assert says in err, err
     assert not out.exists()  # refused before any bag is written
+
+
+def moved(src: Path, dst: Path, platform: dict[str, str] | None) -> Path:
+    """``src`` with candidate 5's θ[0] off by 1e-12 (what another CPU's kernels make of a
+    model-based run) and, unless None, ``platform`` as its ``localpbo/platform`` record."""
+    with BagWriter(dst) as writer:
+        if platform is not None:
+            writer.add_metadata(PLATFORM_METADATA, platform)
+        writer.add_suite_topics(ALL_TOPICS)
+        for rec in read_messages(src):
+            msg = rec.message
+            if rec.topic == CANDIDATE.name:
+                cand = CandidateMsg.decode(msg)
+                assert isinstance(cand, CandidateMsg)
+                if cand.candidate_id == 5:
+                    theta = (cand.theta[0] + 1e-12, *cand.theta[1:])
+                    msg = replace(cand, theta=theta).encode()
+            writer.copy(rec, msg)
+    return dst
+
+
+@pytest.mark.parametrize("where", ["elsewhere", "here", "unknown"])
+def test_a_bag_from_another_platform_says_so(where: str, tmp_path: Path, capsys: Any) -> None:
+    """A rebuilt candidate that parts from the recorded one is put down to the platform when
+    the bag's ``localpbo/platform`` record differs from here (naming what differs), to an
+    edited run config when it is the same, and to either when the bag does not say."""
+    here = recording_platform()
+    other = {**here, "cpu_flags": "sse4_2 avx fma avx2 avx512f", "libraries.torch": "0.0"}
+    platform = {"elsewhere": other, "here": here, "unknown": None}[where]
+    bag = moved(BAG, tmp_path / f"{where}.mcap", platform)
+    report = verify(bag)
+    assert not report.ok and report.mismatch.startswith("candidate 5: θ[0] recorded ")
+    assert "a gap of 1e-12" in report.mismatch
+    platform_said = "the bag was recorded on another platform or by other code"
+    config_said = "fields seed, algorithm, algorithm_options, initial_design"
+    if where == "elsewhere":
+        assert platform_said in report.mismatch and config_said not in report.mismatch
+        assert f"cpu_flags: {other['cpu_flags']} -> {here['cpu_flags']}" in report.mismatch
+        assert f"libraries.torch: 0.0 -> {here['libraries.torch']}" in report.mismatch
+    elif where == "here":
+        assert config_said in report.mismatch and "platform" not in report.mismatch
+    else:
+        assert config_said in report.mismatch
+        assert "the bag has no localpbo/platform record" in report.mismatch
+    code, err = resume(bag, tmp_path / "out", capsys)
+    assert code == 2 and "candidate 5: θ[0]" in err, err
+    assert (platform_said in err) == (where == "elsewhere"), err
+    assert summarize(bag).platform == (platform or {})
 
 
 def test_the_unedited_copy_passes(tmp_path: Path) -> None:

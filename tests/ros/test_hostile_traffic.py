@@ -18,6 +18,7 @@ from localpbo_ros.sim_node import SimNode
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+from localpbo_core.provenance import recording_platform
 from localpbo_core.validation import SettingError
 from localpbo_msgs_py import CandidateMsg, DuelRequest, EpisodeResult, Incumbent, RunConfig, Status
 from localpbo_msgs_py._validate import MAX_ID, MAX_KEYVALUES, MAX_TEXT, MAX_THETA_LEN
@@ -200,6 +201,9 @@ def test_recorder_drops_oversized_and_caps_the_bag(ros: Any, tmp_path: Any, capf
     text = summary.format()
     assert f"capped at {cap} bytes: {c['dropped_bag_full']} messages not recorded" in text
     assert "oversized 40" in text
+    # and where it was recorded, written when it opened
+    assert summary.platform == recording_platform()
+    assert f"code {summary.platform['code.digest']}" in text
 
 
 def test_a_flood_never_crowds_the_run_out_of_the_bag(ros: Any, tmp_path: Any) -> None:

@@ -28,7 +28,10 @@ recorded (``dropped_oversized``); foreign traffic beyond its share is not record
 ``recorded`` (the run's), ``recorded_foreign``, ``foreign_<reason>`` (foreign messages seen,
 by reason) and the ``dropped_<reason>`` ones; they travel on ``/localpbo/status``, and on close
 they go into the bag as its ``localpbo/recorder`` metadata record with the cap and whether it
-was reached (``localpbo bag-info`` prints them). Warnings are throttled.
+was reached (``localpbo bag-info`` prints them). Where the bag is recorded (CPU, library
+versions, code digest: :func:`localpbo_core.provenance.recording_platform`) goes into its
+``localpbo/platform`` metadata record when the bag opens, so ``replay --verify`` can tell a
+run re-made on another platform from a run whose config was edited. Warnings are throttled.
 """
 
 from __future__ import annotations
@@ -42,7 +45,14 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from localpbo_msgs_py.bag import MESSAGE_OVERHEAD, RECORDER_METADATA, BagWriter, foreign_topic
+from localpbo_core.provenance import recording_platform
+from localpbo_msgs_py.bag import (
+    MESSAGE_OVERHEAD,
+    PLATFORM_METADATA,
+    RECORDER_METADATA,
+    BagWriter,
+    foreign_topic,
+)
 from localpbo_msgs_py.errors import DecodeReason
 from localpbo_msgs_py.limits import MAX_MESSAGE_BYTES
 from localpbo_msgs_py.topics import ALL_TOPICS, EVENT_QOS, RUN_CONFIG, TopicSpec
@@ -134,6 +144,7 @@ class RecorderNode(SuiteNode):
                 raise ParameterError("path", f"directory {path.parent} does not exist")
             writer = BagWriter(path, flush_interval_s=self.settings["flush_interval_s"])
         self.writer = writer
+        self.writer.add_metadata(PLATFORM_METADATA, recording_platform())
         self.writer.add_suite_topics(self.topics)
         self._max_message = self.settings["max_message_bytes"]
         self._max_bag = self.settings["max_bag_bytes"]

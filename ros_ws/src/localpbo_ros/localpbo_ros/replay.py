@@ -13,7 +13,10 @@ a bag whose messages cannot be its config's run is refused naming the field or t
 run (``bagtools.history_problem``); a file that is not MCAP is refused as such, one that
 ends early is checked as far as it reads and says so. :func:`resumable` is the same check
 for ``run --resume``. Verify also fails when the bag lacks a message the run published
-(:func:`localpbo_ros.completeness.missing_from_bag`), naming it.
+(:func:`localpbo_ros.completeness.missing_from_bag`), naming it. When a rebuilt candidate or
+duel parts from the recorded one, the report says why it may: where the bag's
+``localpbo/platform`` record (CPU and flags, library versions, code digest) differs from
+here, the other platform or code; otherwise an edited run config.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from localpbo_core.provenance import recorded_elsewhere
 from localpbo_msgs_py.bag import message_class, read_messages, summarize
 from localpbo_msgs_py.qos_yaml import parse_offered_qos
 from localpbo_ros.bagtools import RecordedRun, history_problem, load_run, require_bag
@@ -182,7 +186,35 @@ def check_run(run: RecordedRun, path: str | os.PathLike[str]) -> VerifyReport:
     problem = history_problem(run)
     if problem:
         return VerifyReport(False, 0, 0, 0, 0, f"{path}: {problem}", run.ends_early)
-    return replace(_compare(run), ends_early=run.ends_early)
+    return replace(_compare(run, lambda: _elsewhere(path)), ends_early=run.ends_early)
+
+
+def _elsewhere(path: str | os.PathLike[str]) -> list[str] | None:
+    """What differs between where the bag was recorded and here (its ``localpbo/platform``
+    record against :func:`localpbo_core.provenance.recording_platform`); None when the bag
+    does not say."""
+    recorded = summarize(path).platform
+    return recorded_elsewhere(recorded) if recorded else None
+
+
+def _cause(elsewhere: list[str] | None) -> str:
+    """Why a rebuilt run can part from the recorded one."""
+    if elsewhere:
+        return (
+            f"the bag was recorded on another platform or by other code ({'; '.join(elsewhere)}"
+            "): the same run config and outcomes re-make a model-based run bit for bit only "
+            "with the same code on the same platform"
+        )
+    config = (
+        "the run config's seed, algorithm or their options are not the recorded run's: "
+        "fields seed, algorithm, algorithm_options, initial_design"
+    )
+    if elsewhere is None:
+        return (
+            f"{config}; or the run was recorded on another platform or by other code (the bag "
+            "has no localpbo/platform record to tell)"
+        )
+    return config
 
 
 def resumable(path: str | os.PathLike[str]) -> RecordedRun:
@@ -206,7 +238,7 @@ def resumable(path: str | os.PathLike[str]) -> RecordedRun:
     return run
 
 
-def _compare(run: RecordedRun) -> VerifyReport:
+def _compare(run: RecordedRun, elsewhere: Callable[[], list[str] | None]) -> VerifyReport:
     rebuilt = rebuild(run.config, run.outcomes)
     proposed = {c.candidate_id: c for c in rebuilt.proposed}
     used = rebuilt.driver.n_duels
@@ -228,9 +260,8 @@ def _compare(run: RecordedRun) -> VerifyReport:
                 used,
                 0,
                 f"candidate {cid}: θ[{diff}] recorded {rec.theta[diff]!r}, "
-                f"rebuilt {mine.theta[diff]!r} (the run config's seed, algorithm or their "
-                "options are not the recorded run's: fields seed, algorithm, "
-                "algorithm_options, initial_design)",
+                f"rebuilt {mine.theta[diff]!r}, a gap of "
+                f"{abs(rec.theta[diff] - mine.theta[diff]):.3g} ({_cause(elsewhere())})",
             )
     duels = {r.duel_id: r for r in rebuilt.requests}
     for did in sorted(run.requests):
@@ -244,7 +275,8 @@ def _compare(run: RecordedRun) -> VerifyReport:
                 0,
                 used,
                 0,
-                f"duel {did}: recorded {req.first_id} vs {req.second_id}, rebuilt {mine_txt}",
+                f"duel {did}: recorded {req.first_id} vs {req.second_id}, rebuilt {mine_txt} "
+                f"({_cause(elsewhere())})",
             )
     unpublished = len(set(proposed) - set(run.candidates))
     return VerifyReport(True, len(run.candidates), len(run.requests), used, unpublished, "")
