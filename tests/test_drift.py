@@ -169,10 +169,14 @@ def test_a_copy_is_dated_by_its_source_as_it_was_copied() -> None:
     if _git("rev-parse", "--is-shallow-repository") == "true":
         pytest.skip("a shallow clone holds too little history")
     runs = stored_by_commit(ROOT / "docs" / "results" / "stored_code.json")
-    copy = ROOT / "docs/results/beyond_hybrid/runs/styblinskitang64__turpbo__seed0.json.gz"
-    source = "docs/results/synthetic/runs/styblinskitang64__turpbo__seed0.json.gz"
+    copy = (
+        ROOT
+        / "docs/results/ablation_prefsqp_causes/runs/hartmann6__prefsqp__noise0.1__seed0.json.gz"
+    )
+    source = "docs/results/beyond_local_steps/runs/hartmann6__prefsqp__seed0.json.gz"
     assert "code" in read_run(ROOT / source)  # re-run with today's code
-    assert read_run(copy)["run"]["reused_from"] == "synthetic/styblinskitang64__turpbo__seed0"
+    assert "code" not in read_run(copy)  # copied before the re-run, from a run without one
+    assert read_run(copy)["run"]["reused_from"] == "beyond_local_steps/hartmann6__prefsqp__seed0"
     commit, _ = runs[copy]
     rel = copy.relative_to(ROOT).as_posix()
     copied_at = _git("log", "--diff-filter=A", "--format=%H", "--", rel).splitlines()[-1]
