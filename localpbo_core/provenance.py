@@ -41,6 +41,7 @@ parts from a run of the same code reads as a machine's doing only when the platf
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.metadata
@@ -206,16 +207,16 @@ CPU has are recorded: a virtual machine often names only the CPU's family)."""
 @functools.cache
 def _cpu() -> tuple[str, tuple[str, ...]]:
     model, flags = "", set[str]()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                key, _, value = line.partition(":")
-                if key.strip() == "model name" and not model:
-                    model = value.strip()
-                elif key.strip() == "flags" and not flags:
-                    flags = set(value.split())
-    except OSError:
-        pass
+    with (
+        contextlib.suppress(OSError),
+        open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh,
+    ):
+        for line in fh:
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and not model:
+                model = value.strip()
+            elif key.strip() == "flags" and not flags:
+                flags = set(value.split())
     return model or platform.processor() or platform.machine(), tuple(
         f for f in CPU_FLAGS if f in flags
     )
@@ -232,6 +233,30 @@ def _libraries() -> dict[str, str]:
     return out
 
 
+def _host() -> dict[str, Any]:
+    """The fields of :func:`platform_block` known without importing torch."""
+    model, flags = _cpu()
+    return {
+        "cpu": model,
+        "cpu_flags": " ".join(flags),
+        "machine": platform.machine(),
+        "python": platform.python_version(),
+        "libraries": _libraries(),
+        "environment": {k: os.environ[k] for k in NUMERIC_VARIABLES if k in os.environ},
+    }
+
+
+def _flat(block: dict[str, Any]) -> dict[str, str]:
+    """``block`` with its nested dicts spelled ``key.name`` and every value a string."""
+    out: dict[str, str] = {}
+    for key, value in block.items():
+        if isinstance(value, dict):
+            out.update({f"{key}.{k}": str(v) for k, v in value.items()})
+        else:
+            out[key] = str(value)
+    return out
+
+
 def platform_block() -> dict[str, Any]:
     """The ``platform`` block stored with a run (module docstring): ``cpu`` (the model name),
     ``cpu_flags`` (the CPU's :data:`CPU_FLAGS`, space-separated), ``machine`` (the
@@ -241,16 +266,10 @@ def platform_block() -> dict[str, Any]:
     code and settings whose blocks are equal are expected to agree bit for bit."""
     import torch
 
-    model, flags = _cpu()
     return {
-        "cpu": model,
-        "cpu_flags": " ".join(flags),
-        "machine": platform.machine(),
+        **_host(),
         "cpu_capability": str(torch.backends.cpu.get_cpu_capability()),
         "torch_threads": int(torch.get_num_threads()),
-        "python": platform.python_version(),
-        "libraries": _libraries(),
-        "environment": {k: os.environ[k] for k in NUMERIC_VARIABLES if k in os.environ},
     }
 
 
@@ -261,19 +280,12 @@ def recording_platform() -> dict[str, str]:
     ``code.digest`` (:data:`RUN_SOURCES`) and ``code.commit``. torch's kernel level follows
     from the flags and ``ATEN_CPU_CAPABILITY``; thread counts are the optimizer process's
     (one per pool, :mod:`localpbo_core.threads`), not the recorder's."""
-    model, flags = _cpu()
     commit, dirty = _commit()
-    record = {
-        "cpu": model,
-        "cpu_flags": " ".join(flags),
-        "machine": platform.machine(),
-        "python": platform.python_version(),
+    return {
+        **_flat(_host()),
         "code.digest": _digest(RUN_SOURCES),
         "code.commit": f"{commit or ''}{'+dirty' if dirty else ''}",
     }
-    record.update({f"libraries.{k}": v for k, v in _libraries().items()})
-    record.update({f"environment.{k}": os.environ[k] for k in NUMERIC_VARIABLES if k in os.environ})
-    return record
 
 
 def recorded_elsewhere(recorded: dict[str, str]) -> list[str]:
@@ -289,17 +301,7 @@ def recorded_elsewhere(recorded: dict[str, str]) -> list[str]:
 def platform_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     """What differs between two ``platform`` blocks, one ``"field: old -> new"`` per field
     (library versions and environment variables one by one); empty when they are equal."""
-
-    def flat(block: dict[str, Any]) -> dict[str, str]:
-        out: dict[str, str] = {}
-        for key, value in block.items():
-            if isinstance(value, dict):
-                out.update({f"{key}.{k}": str(v) for k, v in value.items()})
-            else:
-                out[key] = str(value)
-        return out
-
-    a, b = flat(old), flat(new)
+    a, b = _flat(old), _flat(new)
     return [
         f"{k}: {a.get(k, '-')} -> {b.get(k, '-')}"
         for k in sorted(set(a) | set(b))
