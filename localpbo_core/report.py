@@ -67,6 +67,9 @@ class StoredRun(RunLabels):
     """The run's process CPU seconds over its wall seconds (one thread per run: at most about
     one, lower when other processes kept it waiting, so its seconds are high by up to
     ``1 / core_share``); None for runs stored before runs recorded it."""
+    cpu_seconds: float | None = None
+    """The run's process CPU seconds, evaluations included (what the run costs a core); None
+    for runs stored before runs recorded it."""
     reused_from: str = ""
     """``<spec>/<run_id>`` when ``localpbo sweep --reuse`` copied the run from another sweep."""
     code: dict[str, Any] | None = None
@@ -136,6 +139,7 @@ def read_stored_run(path: Path) -> tuple[StoredRun, dict[str, Any] | None]:
         cumulative=np.array([r["cumulative"] for r in records], dtype=np.float64),
         optimizer_seconds=float(sum(r["decision_seconds"] for r in records)),
         core_share=_core_share(doc),
+        cpu_seconds=doc["cpu_seconds"] if isinstance(doc.get("cpu_seconds"), float) else None,
         reused_from=str(meta.get("reused_from", "")),
         platform=doc.get("platform") if isinstance(doc.get("platform"), dict) else None,
         replaced=doc.get("replaced") if isinstance(doc.get("replaced"), dict) else None,
@@ -560,9 +564,31 @@ def _shown(path: Path) -> str:
         return path.as_posix()
 
 
+@dataclass(frozen=True)
+class Completion:
+    """One ``localpbo sweep`` command of :func:`completion_plan` and the runs it stores."""
+
+    words: tuple[str, ...]
+    groups: tuple[tuple[str, str, str, str, int], ...]
+    """Its missing groups, each ``(spec, problem, variant, algorithm, runs not stored)``."""
+    within_model: bool
+    """Whether the spec's runs know the true hyperparameters (within-model GP paths)."""
+
+    @property
+    def command(self) -> str:
+        return " ".join(self.words)
+
+
 def completion_commands(
     runs: Sequence[StoredRun], specs: Sequence[str], inputs: Sequence[str | Path]
 ) -> list[str]:
+    """The command lines of :func:`completion_plan`."""
+    return [c.command for c in completion_plan(runs, specs, inputs)]
+
+
+def completion_plan(
+    runs: Sequence[StoredRun], specs: Sequence[str], inputs: Sequence[str | Path]
+) -> list[Completion]:
     """``localpbo sweep`` commands that store the groups of ``specs`` missing at
     :data:`COVERAGE_SEEDS`, except groups of the paper's specs (:data:`PAPER_SPECS`) that the
     paper did not run (:func:`_not_in_paper`).
@@ -593,7 +619,7 @@ def completion_commands(
         ]
         return f"{(held or roots)[0]}/{name}"
 
-    lines = []
+    plan = []
     for name in specs:
         spec = load_spec(name, validate=False)
         missing = [k for k in spec.groups() if seeds.get((spec.name, *k), set()) & wanted != wanted]
@@ -629,7 +655,98 @@ def completion_commands(
             words += ["--seeds", span]
             for other in donors:
                 words += ["--reuse", folder(other)]
-            lines.append(" ".join(words))
+            groups = tuple(
+                (spec.name, p, v, a, len(wanted - seeds.get((spec.name, p, v, a), set())))
+                for p in ps
+                for v in sorted(vs)
+                for a in algs
+            )
+            plan.append(Completion(tuple(words), groups, spec.within_model))
+    return plan
+
+
+def run_cost(run: StoredRun) -> float:
+    """What a stored run cost a core: its CPU seconds, or for a run stored before runs
+    recorded them its optimizer seconds (evaluations excluded, wall time under whatever load
+    the machine had)."""
+    return run.optimizer_seconds if run.cpu_seconds is None else run.cpu_seconds
+
+
+def group_cost(
+    runs: Sequence[StoredRun],
+    spec: str,
+    problem: str,
+    variant: str,
+    algorithm: str,
+    within_model: bool,
+) -> tuple[float, str] | None:
+    """Seconds a core needs for one more run of the group ``(spec, problem, variant,
+    algorithm)``, estimated as the mean :func:`run_cost` of the stored runs nearest to it,
+    and which runs those are: the group's own, else the same spec's runs of the problem and
+    algorithm in other variants, else other specs' runs of the same problem label and
+    algorithm in the same model setting (``within_model``), else those in the other setting
+    (within model a GP method learns no hyperparameters, so these understate its cost). Runs
+    with CPU seconds are preferred over those without at each step. None when no such run is
+    stored."""
+    same = [r for r in runs if (r.problem_label, r.algorithm_label) == (problem, algorithm)]
+    steps: list[tuple[str, list[StoredRun]]] = [
+        ("of the group", [r for r in same if (r.spec, r.variant) == (spec, variant)]),
+        ("of other variants", [r for r in same if r.spec == spec and r.variant != variant]),
+        ("", [r for r in same if r.spec != spec and r.within_model == within_model]),
+        ("", [r for r in same if r.spec != spec and r.within_model != within_model]),
+    ]
+    for i, (where, found) in enumerate(steps):
+        if not found:
+            continue
+        timed = [r for r in found if r.cpu_seconds is not None]
+        basis = timed or found
+        seconds = float(np.mean([run_cost(r) for r in basis]))
+        what = "CPU seconds" if timed else "optimizer seconds"
+        n = f"{len(basis)} run{'s' if len(basis) != 1 else ''}"
+        source = where or "of " + ", ".join(sorted({r.spec for r in basis}))
+        setting = ", the other model setting" if i == 3 else ""
+        return seconds, f"{n} {source}{setting}; {what}"
+    return None
+
+
+def _hours(seconds: float) -> str:
+    return f"{seconds / 3600:.1f}"
+
+
+def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> list[str]:
+    """A table of the core-hours each command of ``plan`` needs (:func:`group_cost` per
+    missing group) and a sentence with the total."""
+    lines = [
+        "| command | runs | core-hours | per run, estimated from |",
+        "| ---: | ---: | ---: | --- |",
+    ]
+    total_runs = total_seconds = unknown = 0.0
+    for i, c in enumerate(plan, 1):
+        seconds, cells, n_runs, open_runs = 0.0, [], 0, 0
+        for spec, problem, variant, algorithm, n in c.groups:
+            name = "/".join(x for x in (problem, variant, algorithm) if x)
+            n_runs += n
+            cost = group_cost(runs, spec, problem, variant, algorithm, c.within_model)
+            if cost is None:
+                open_runs += n
+                cells.append(f"{name}: no stored run to estimate from")
+                continue
+            seconds += n * cost[0]
+            cells.append(f"{name}: {cost[0] / 60:.3g} min ({cost[1]})")
+        hours = "?" if open_runs == n_runs else _hours(seconds) + (" + ?" if open_runs else "")
+        lines.append(f"| {i} | {n_runs} | {hours} | {'; '.join(cells)} |")
+        total_runs += n_runs
+        total_seconds += seconds
+        unknown += open_runs
+    rest = f", besides {int(unknown)} runs with nothing stored to estimate from" if unknown else ""
+    lines += [
+        "",
+        f"In all {int(total_runs)} runs, about {_hours(total_seconds)} core-hours{rest}: one "
+        "run uses one core, so a machine or cluster with c free cores needs about 1/c of that "
+        "in wall time. The estimates come from stored runs of other days and loads, and where "
+        "runs did not record CPU seconds their optimizer seconds stand in, which leave out the "
+        "evaluations (on the policy tasks, the episodes): read them as a guide.",
+    ]
     return lines
 
 
@@ -878,6 +995,7 @@ def write_report(
         prefsqp_diagnosis.section_folders(paths), complete_seeds=complete_seeds
     )
     specs = coverage_specs(stored)
+    plan = completion_plan(stored, specs, paths)
     lines += [
         "## Coverage",
         "",
@@ -895,8 +1013,12 @@ def write_report(
         "runs of the same settings.",
         "",
         "```",
-        *completion_commands(stored, specs, paths),
+        *(c.command for c in plan),
         "```",
+        "",
+        "What each command costs, in the order above (commands by line number):",
+        "",
+        *completion_costs(stored, plan),
         "",
         "## Noise",
         "",

@@ -459,3 +459,70 @@ def test_the_pages_completion_commands_run_the_missing_runs() -> None:
     ]
     lacking = [name for name in wanted if name not in stored]
     assert lacking and f", {len(lacking)} will run, 0 later" in done.stdout, done.stdout[-400:]
+
+
+def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
+    """Fabricated runs: a group's own runs beat other variants', those beat other specs' in
+    the same model setting, those the other setting; CPU seconds beat optimizer seconds at
+    each step; a group with nothing stored to estimate from is counted apart, not as free."""
+    from dataclasses import replace
+
+    from localpbo_core.report import Completion, StoredRun, completion_costs, group_cost
+    from tests.fabricated import stored_run
+
+    def run(
+        spec: str, problem: str, alg: str, seed: int, seconds: float, variant: str = "", cpu=None
+    ) -> StoredRun:
+        r = stored_run(spec, problem, alg, seed, 0.0, 0.0, seconds, variant=variant)
+        return replace(r, cpu_seconds=cpu)
+
+    runs = [
+        run("ablation_noise", "levy32", "gipbo", 0, 100.0, variant="noise0"),
+        run("ablation_noise", "levy32", "gipbo", 0, 200.0, variant="noise0.1"),
+        run("ablation_noise", "levy32", "gipbo", 1, 50.0, variant="noise0.1", cpu=400.0),
+        run("synthetic", "levy32", "gipbo", 0, 900.0),
+        run("gp_within", "gp64_l0.1", "glisp", 0, 600.0, cpu=630.0),
+        run("gp_out_of_model", "gp64_l0.5", "glisp", 0, 60.0),
+    ]
+    noise = ("ablation_noise", "levy32")
+    assert group_cost(runs, *noise, "noise0", "gipbo", False) == (
+        100.0,
+        "1 run of the group; optimizer seconds",
+    )
+    assert group_cost(runs, *noise, "noise0.2", "gipbo", False) == (
+        400.0,
+        "1 run of other variants; CPU seconds",
+    )
+    assert group_cost(runs, "beyond_local_steps", "levy32", "", "gipbo", False) == (
+        400.0,
+        "1 run of ablation_noise; CPU seconds",
+    )
+    assert group_cost(runs, "gp_out_of_model", "gp64_l0.1", "", "glisp", False) == (
+        630.0,
+        "1 run of gp_within, the other model setting; CPU seconds",
+    )
+    assert group_cost(runs, "gp_out_of_model", "gp96_l0.1", "", "glisp", False) is None
+
+    plan = [
+        Completion(("c1",), (("ablation_noise", "levy32", "noise0.2", "gipbo", 9),), False),
+        Completion(
+            ("c2",),
+            (
+                ("gp_out_of_model", "gp64_l0.1", "", "glisp", 3),
+                ("gp_out_of_model", "gp96_l0.1", "", "glisp", 10),
+            ),
+            False,
+        ),
+        Completion(("c3",), (("gp_out_of_model", "gp96_l0.5", "", "glisp", 10),), False),
+    ]
+    lines = completion_costs(runs, plan)
+    assert (
+        lines[2] == "| 1 | 9 | 1.0 | levy32/noise0.2/gipbo: 6.67 min "
+        "(1 run of other variants; CPU seconds) |"
+    )
+    assert lines[3].startswith("| 2 | 13 | 0.5 + ? | gp64_l0.1/glisp: 10.5 min (")
+    assert "gp96_l0.1/glisp: no stored run to estimate from" in lines[3]
+    assert lines[4].startswith("| 3 | 10 | ? | ")
+    assert lines[-1].startswith(
+        "In all 32 runs, about 1.5 core-hours, besides 20 runs with nothing stored to estimate from"
+    )
