@@ -715,12 +715,14 @@ def _hours(seconds: float) -> str:
 
 def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> list[str]:
     """A table of the core-hours each command of ``plan`` needs (:func:`group_cost` per
-    missing group) and a sentence with the total."""
+    missing group) and a sentence with the total; nothing when ``plan`` is empty."""
     lines = [
         "| command | runs | core-hours | per run, estimated from |",
         "| ---: | ---: | ---: | --- |",
     ]
-    total_runs = total_seconds = unknown = 0.0
+    if not plan:
+        return []
+    total_runs, total_seconds, unknown = 0, 0.0, 0
     for i, c in enumerate(plan, 1):
         seconds, cells, n_runs, open_runs = 0.0, [], 0, 0
         for spec, problem, variant, algorithm, n in c.groups:
@@ -738,10 +740,10 @@ def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> l
         total_runs += n_runs
         total_seconds += seconds
         unknown += open_runs
-    rest = f", besides {int(unknown)} runs with nothing stored to estimate from" if unknown else ""
+    rest = f", besides {unknown} runs with nothing stored to estimate from" if unknown else ""
     lines += [
         "",
-        f"In all {int(total_runs)} runs, about {_hours(total_seconds)} core-hours{rest}: one "
+        f"In all {total_runs} runs, about {_hours(total_seconds)} core-hours{rest}: one "
         "run uses one core, so a machine or cluster with c free cores needs about 1/c of that "
         "in wall time. The estimates come from stored runs of other days and loads, and where "
         "runs did not record CPU seconds their optimizer seconds stand in, which leave out the "
@@ -1016,10 +1018,16 @@ def write_report(
         *(c.command for c in plan),
         "```",
         "",
-        "What each command costs, in the order above (commands by line number):",
-        "",
-        *completion_costs(stored, plan),
-        "",
+        *(
+            [
+                "What each command costs, in the order above (commands by line number):",
+                "",
+                *completion_costs(stored, plan),
+                "",
+            ]
+            if plan
+            else []
+        ),
         "## Noise",
         "",
         "The oracle's noise std σ of the stored runs: the run's noise fraction × the problem's "

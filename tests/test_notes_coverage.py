@@ -526,3 +526,4 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
     assert lines[-1].startswith(
         "In all 32 runs, about 1.5 core-hours, besides 20 runs with nothing stored to estimate from"
     )
+    assert completion_costs(runs, []) == []
