@@ -565,14 +565,29 @@ def _shown(path: Path) -> str:
 
 
 @dataclass(frozen=True)
+class MissingGroup:
+    """A group (spec, problem, variant, algorithm labels) without every seed stored."""
+
+    spec: str
+    problem: str
+    variant: str
+    algorithm: str
+    runs: int
+    """Its runs not stored."""
+    within_model: bool
+    """Whether the spec's runs know the true hyperparameters (within-model GP paths)."""
+    problem_name: str
+    """The registered problem behind the label (e.g. ``gp_sample``)."""
+    dim: int | None
+    """The problem's ``dim`` option, if it has one."""
+
+
+@dataclass(frozen=True)
 class Completion:
     """One ``localpbo sweep`` command of :func:`completion_plan` and the runs it stores."""
 
     words: tuple[str, ...]
-    groups: tuple[tuple[str, str, str, str, int], ...]
-    """Its missing groups, each ``(spec, problem, variant, algorithm, runs not stored)``."""
-    within_model: bool
-    """Whether the spec's runs know the true hyperparameters (within-model GP paths)."""
+    groups: tuple[MissingGroup, ...]
 
     @property
     def command(self) -> str:
@@ -622,6 +637,7 @@ def completion_plan(
     plan = []
     for name in specs:
         spec = load_spec(name, validate=False)
+        entries = {e.label: e for e in spec.problems}
         missing = [k for k in spec.groups() if seeds.get((spec.name, *k), set()) & wanted != wanted]
         skipped = set(_not_in_paper(spec, missing)) if spec.name in PAPER_SPECS else set()
         algorithms: dict[tuple[str, str], set[str]] = {}
@@ -656,12 +672,21 @@ def completion_plan(
             for other in donors:
                 words += ["--reuse", folder(other)]
             groups = tuple(
-                (spec.name, p, v, a, len(wanted - seeds.get((spec.name, p, v, a), set())))
+                MissingGroup(
+                    spec.name,
+                    p,
+                    v,
+                    a,
+                    len(wanted - seeds.get((spec.name, p, v, a), set())),
+                    spec.within_model,
+                    entries[p].name,
+                    _dim(entries[p].options),
+                )
                 for p in ps
                 for v in sorted(vs)
                 for a in algs
             )
-            plan.append(Completion(tuple(words), groups, spec.within_model))
+            plan.append(Completion(tuple(words), groups))
     return plan
 
 
@@ -672,28 +697,38 @@ def run_cost(run: StoredRun) -> float:
     return run.optimizer_seconds if run.cpu_seconds is None else run.cpu_seconds
 
 
-def group_cost(
-    runs: Sequence[StoredRun],
-    spec: str,
-    problem: str,
-    variant: str,
-    algorithm: str,
-    within_model: bool,
-) -> tuple[float, str] | None:
-    """Seconds a core needs for one more run of the group ``(spec, problem, variant,
-    algorithm)``, estimated as the mean :func:`run_cost` of the stored runs nearest to it,
-    and which runs those are: the group's own, else the same spec's runs of the problem and
-    algorithm in other variants, else other specs' runs of the same problem label and
-    algorithm in the same model setting (``within_model``), else those in the other setting
-    (within model a GP method learns no hyperparameters, so these understate its cost). Runs
-    with CPU seconds are preferred over those without at each step. None when no such run is
-    stored."""
-    same = [r for r in runs if (r.problem_label, r.algorithm_label) == (problem, algorithm)]
+def _dim(options: Any) -> int | None:
+    """A problem's ``dim`` option, if it has an integer one."""
+    dim = dict(options).get("dim")
+    return dim if isinstance(dim, int) else None
+
+
+def group_cost(runs: Sequence[StoredRun], group: MissingGroup) -> tuple[float, str] | None:
+    """Seconds a core needs for one more run of ``group``, estimated as the mean
+    :func:`run_cost` of the stored runs nearest to it, and which runs those are: the group's
+    own; else the same spec's runs of the problem and algorithm in other variants; else the
+    same spec's runs of the algorithm and variant on problems of the same kind and dimension
+    (e.g. a GP path of the same d with another lengthscale); else other specs' runs of the
+    same problem label and algorithm in the same model setting; else those in the other
+    setting (within model a GP method learns no hyperparameters, so these understate its
+    cost). Runs with CPU seconds are preferred over those without at each step. None when no
+    such run is stored."""
+    g = group
+    same = [r for r in runs if (r.problem_label, r.algorithm_label) == (g.problem, g.algorithm)]
+    kin = [
+        r
+        for r in runs
+        if g.dim is not None
+        and (r.spec, r.algorithm_label, r.variant) == (g.spec, g.algorithm, g.variant)
+        and r.problem_label != g.problem
+        and (r.settings["problem"], _dim(r.settings["problem_options"])) == (g.problem_name, g.dim)
+    ]
     steps: list[tuple[str, list[StoredRun]]] = [
-        ("of the group", [r for r in same if (r.spec, r.variant) == (spec, variant)]),
-        ("of other variants", [r for r in same if r.spec == spec and r.variant != variant]),
-        ("", [r for r in same if r.spec != spec and r.within_model == within_model]),
-        ("", [r for r in same if r.spec != spec and r.within_model != within_model]),
+        ("of the group", [r for r in same if (r.spec, r.variant) == (g.spec, g.variant)]),
+        ("of other variants", [r for r in same if r.spec == g.spec and r.variant != g.variant]),
+        ("of " + ", ".join(sorted({r.problem_label for r in kin})), kin),
+        ("", [r for r in same if r.spec != g.spec and r.within_model == g.within_model]),
+        ("", [r for r in same if r.spec != g.spec and r.within_model != g.within_model]),
     ]
     for i, (where, found) in enumerate(steps):
         if not found:
@@ -704,7 +739,7 @@ def group_cost(
         what = "CPU seconds" if timed else "optimizer seconds"
         n = f"{len(basis)} run{'s' if len(basis) != 1 else ''}"
         source = where or "of " + ", ".join(sorted({r.spec for r in basis}))
-        setting = ", the other model setting" if i == 3 else ""
+        setting = ", the other model setting" if i == len(steps) - 1 else ""
         return seconds, f"{n} {source}{setting}; {what}"
     return None
 
@@ -725,10 +760,11 @@ def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> l
     total_runs, total_seconds, unknown = 0, 0.0, 0
     for i, c in enumerate(plan, 1):
         seconds, cells, n_runs, open_runs = 0.0, [], 0, 0
-        for spec, problem, variant, algorithm, n in c.groups:
-            name = "/".join(x for x in (problem, variant, algorithm) if x)
+        for g in c.groups:
+            name = "/".join(x for x in (g.problem, g.variant, g.algorithm) if x)
+            n = g.runs
             n_runs += n
-            cost = group_cost(runs, spec, problem, variant, algorithm, c.within_model)
+            cost = group_cost(runs, g)
             if cost is None:
                 open_runs += n
                 cells.append(f"{name}: no stored run to estimate from")

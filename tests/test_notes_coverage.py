@@ -462,12 +462,19 @@ def test_the_pages_completion_commands_run_the_missing_runs() -> None:
 
 
 def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
-    """Fabricated runs: a group's own runs beat other variants', those beat other specs' in
-    the same model setting, those the other setting; CPU seconds beat optimizer seconds at
-    each step; a group with nothing stored to estimate from is counted apart, not as free."""
+    """Fabricated runs: a group's own runs beat other variants', those beat the same spec's
+    runs on a problem of the same kind and dimension, those other specs' in the same model
+    setting, those the other setting; CPU seconds beat optimizer seconds at each step; a group
+    with nothing stored to estimate from is counted apart, not as free."""
     from dataclasses import replace
 
-    from localpbo_core.report import Completion, StoredRun, completion_costs, group_cost
+    from localpbo_core.report import (
+        Completion,
+        MissingGroup,
+        StoredRun,
+        completion_costs,
+        group_cost,
+    )
     from tests.fabricated import stored_run
 
     def run(
@@ -476,6 +483,12 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         r = stored_run(spec, problem, alg, seed, 0.0, 0.0, seconds, variant=variant)
         return replace(r, cpu_seconds=cpu)
 
+    def group(spec: str, problem: str, variant: str, alg: str, n: int = 10) -> MissingGroup:
+        gp = problem.startswith("gp")
+        dim = int(problem[2:].split("_")[0]) if gp else None
+        name = "gp_sample" if gp else problem
+        return MissingGroup(spec, problem, variant, alg, n, spec == "gp_within", name, dim)
+
     runs = [
         run("ablation_noise", "levy32", "gipbo", 0, 100.0, variant="noise0"),
         run("ablation_noise", "levy32", "gipbo", 0, 200.0, variant="noise0.1"),
@@ -483,47 +496,50 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         run("synthetic", "levy32", "gipbo", 0, 900.0),
         run("gp_within", "gp64_l0.1", "glisp", 0, 600.0, cpu=630.0),
         run("gp_out_of_model", "gp64_l0.5", "glisp", 0, 60.0),
+        run("gp_within", "gp96_l0.5", "glisp", 0, 1000.0, cpu=1200.0),
     ]
-    noise = ("ablation_noise", "levy32")
-    assert group_cost(runs, *noise, "noise0", "gipbo", False) == (
+    assert group_cost(runs, group("ablation_noise", "levy32", "noise0", "gipbo")) == (
         100.0,
         "1 run of the group; optimizer seconds",
     )
-    assert group_cost(runs, *noise, "noise0.2", "gipbo", False) == (
+    assert group_cost(runs, group("ablation_noise", "levy32", "noise0.2", "gipbo")) == (
         400.0,
         "1 run of other variants; CPU seconds",
     )
-    assert group_cost(runs, "beyond_local_steps", "levy32", "", "gipbo", False) == (
+    assert group_cost(runs, group("beyond_local_steps", "levy32", "", "gipbo")) == (
         400.0,
         "1 run of ablation_noise; CPU seconds",
     )
-    assert group_cost(runs, "gp_out_of_model", "gp64_l0.1", "", "glisp", False) == (
-        630.0,
+    assert group_cost(runs, group("gp_out_of_model", "gp64_l0.1", "", "glisp")) == (
+        60.0,
+        "1 run of gp64_l0.5; optimizer seconds",
+    )
+    assert group_cost(runs, group("gp_out_of_model", "gp96_l0.5", "", "glisp")) == (
+        1200.0,
         "1 run of gp_within, the other model setting; CPU seconds",
     )
-    assert group_cost(runs, "gp_out_of_model", "gp96_l0.1", "", "glisp", False) is None
+    assert group_cost(runs, group("gp_out_of_model", "gp96_l0.1", "", "glisp")) is None
 
     plan = [
-        Completion(("c1",), (("ablation_noise", "levy32", "noise0.2", "gipbo", 9),), False),
+        Completion(("c1",), (group("ablation_noise", "levy32", "noise0.2", "gipbo", 9),)),
         Completion(
             ("c2",),
             (
-                ("gp_out_of_model", "gp64_l0.1", "", "glisp", 3),
-                ("gp_out_of_model", "gp96_l0.1", "", "glisp", 10),
+                group("gp_out_of_model", "gp64_l0.1", "", "glisp", 6),
+                group("gp_out_of_model", "gp96_l0.1", "", "glisp"),
             ),
-            False,
         ),
-        Completion(("c3",), (("gp_out_of_model", "gp96_l0.5", "", "glisp", 10),), False),
+        Completion(("c3",), (group("gp_out_of_model", "gp96_l0.1", "", "glisp"),)),
     ]
     lines = completion_costs(runs, plan)
     assert (
         lines[2] == "| 1 | 9 | 1.0 | levy32/noise0.2/gipbo: 6.67 min "
         "(1 run of other variants; CPU seconds) |"
     )
-    assert lines[3].startswith("| 2 | 13 | 0.5 + ? | gp64_l0.1/glisp: 10.5 min (")
+    assert lines[3].startswith("| 2 | 16 | 0.1 + ? | gp64_l0.1/glisp: 1 min (")
     assert "gp96_l0.1/glisp: no stored run to estimate from" in lines[3]
     assert lines[4].startswith("| 3 | 10 | ? | ")
     assert lines[-1].startswith(
-        "In all 32 runs, about 1.5 core-hours, besides 20 runs with nothing stored to estimate from"
+        "In all 35 runs, about 1.1 core-hours, besides 20 runs with nothing stored to estimate from"
     )
     assert completion_costs(runs, []) == []
