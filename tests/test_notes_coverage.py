@@ -498,26 +498,18 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         run("gp_out_of_model", "gp64_l0.5", "glisp", 0, 60.0),
         run("gp_within", "gp96_l0.5", "glisp", 0, 1000.0, cpu=1200.0),
     ]
-    assert group_cost(runs, group("ablation_noise", "levy32", "noise0", "gipbo")) == (
-        100.0,
-        "1 run of the group; optimizer seconds",
-    )
-    assert group_cost(runs, group("ablation_noise", "levy32", "noise0.2", "gipbo")) == (
-        400.0,
-        "1 run of other variants; CPU seconds",
-    )
-    assert group_cost(runs, group("beyond_local_steps", "levy32", "", "gipbo")) == (
-        400.0,
-        "1 run of ablation_noise; CPU seconds",
-    )
-    assert group_cost(runs, group("gp_out_of_model", "gp64_l0.1", "", "glisp")) == (
-        60.0,
-        "1 run of gp64_l0.5; optimizer seconds",
-    )
-    assert group_cost(runs, group("gp_out_of_model", "gp96_l0.5", "", "glisp")) == (
-        1200.0,
-        "1 run of gp_within, the other model setting; CPU seconds",
-    )
+    expected = {
+        ("ablation_noise", "levy32", "noise0", "gipbo"): (100.0, "of the group; optimizer"),
+        ("ablation_noise", "levy32", "noise0.2", "gipbo"): (400.0, "of other variants; CPU"),
+        ("beyond_local_steps", "levy32", "", "gipbo"): (400.0, "of ablation_noise; CPU"),
+        ("gp_out_of_model", "gp64_l0.1", "", "glisp"): (60.0, "of gp64_l0.5; optimizer"),
+        ("gp_out_of_model", "gp96_l0.5", "", "glisp"): (
+            1200.0,
+            "of gp_within, the other model setting; CPU",
+        ),
+    }
+    for key, (seconds, basis) in expected.items():
+        assert group_cost(runs, group(*key)) == (seconds, f"1 run {basis} seconds"), key
     assert group_cost(runs, group("gp_out_of_model", "gp96_l0.1", "", "glisp")) is None
 
     plan = [
