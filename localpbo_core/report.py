@@ -751,12 +751,12 @@ def _hours(seconds: float) -> str:
 def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> list[str]:
     """A table of the core-hours each command of ``plan`` needs (:func:`group_cost` per
     missing group) and a sentence with the total; nothing when ``plan`` is empty."""
+    if not plan:
+        return []
     lines = [
         "| command | runs | core-hours | per run, estimated from |",
         "| ---: | ---: | ---: | --- |",
     ]
-    if not plan:
-        return []
     total_runs, total_seconds, unknown = 0, 0.0, 0
     for i, c in enumerate(plan, 1):
         seconds, cells, n_runs, open_runs = 0.0, [], 0, 0
