@@ -711,8 +711,13 @@ def group_cost(runs: Sequence[StoredRun], group: MissingGroup) -> tuple[float, s
     (e.g. a GP path of the same d with another lengthscale); else other specs' runs of the
     same problem label and algorithm in the same model setting; else those in the other
     setting (within model a GP method learns no hyperparameters, so these understate its
-    cost). Runs with CPU seconds are preferred over those without at each step. None when no
-    such run is stored."""
+    cost); else, for a preset (``localpbo_core/presets.py``: an algorithm with options), the
+    runs of the same problem label by the preset's algorithm, same model setting first (the
+    options change how the algorithm spends its steps, not what one step costs, so read these
+    as a guide). Runs with CPU seconds are preferred over those without at each step. None when
+    no such run is stored."""
+    from localpbo_core.presets import PRESETS
+
     g = group
     same = [r for r in runs if (r.problem_label, r.algorithm_label) == (g.problem, g.algorithm)]
     kin = [
@@ -723,14 +728,21 @@ def group_cost(runs: Sequence[StoredRun], group: MissingGroup) -> tuple[float, s
         and r.problem_label != g.problem
         and (r.settings["problem"], _dim(r.settings["problem_options"])) == (g.problem_name, g.dim)
     ]
+    preset = PRESETS.get(g.algorithm)
+    base_algorithm = preset.algorithm if preset is not None else None
+    base = [r for r in runs if (r.problem_label, r.algorithm_label) == (g.problem, base_algorithm)]
+    of_base = f"of {base_algorithm}, the preset's algorithm"
+    other = ", the other model setting"
     steps: list[tuple[str, list[StoredRun]]] = [
         ("of the group", [r for r in same if (r.spec, r.variant) == (g.spec, g.variant)]),
         ("of other variants", [r for r in same if r.spec == g.spec and r.variant != g.variant]),
         ("of " + ", ".join(sorted({r.problem_label for r in kin})), kin),
         ("", [r for r in same if r.spec != g.spec and r.within_model == g.within_model]),
-        ("", [r for r in same if r.spec != g.spec and r.within_model != g.within_model]),
+        (other, [r for r in same if r.spec != g.spec and r.within_model != g.within_model]),
+        (of_base, [r for r in base if r.within_model == g.within_model]),
+        (of_base + other, [r for r in base if r.within_model != g.within_model]),
     ]
-    for i, (where, found) in enumerate(steps):
+    for where, found in steps:
         if not found:
             continue
         timed = [r for r in found if r.cpu_seconds is not None]
@@ -738,9 +750,9 @@ def group_cost(runs: Sequence[StoredRun], group: MissingGroup) -> tuple[float, s
         seconds = float(np.mean([run_cost(r) for r in basis]))
         what = "CPU seconds" if timed else "optimizer seconds"
         n = f"{len(basis)} run{'s' if len(basis) != 1 else ''}"
-        source = where or "of " + ", ".join(sorted({r.spec for r in basis}))
-        setting = ", the other model setting" if i == len(steps) - 1 else ""
-        return seconds, f"{n} {source}{setting}; {what}"
+        specs = ", ".join(sorted({r.spec for r in basis}))
+        source = where if where.startswith("of ") else f"of {specs}{where}"
+        return seconds, f"{n} {source}; {what}"
     return None
 
 

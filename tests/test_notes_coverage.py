@@ -464,8 +464,9 @@ def test_the_pages_completion_commands_run_the_missing_runs() -> None:
 def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
     """Fabricated runs: a group's own runs beat other variants', those beat the same spec's
     runs on a problem of the same kind and dimension, those other specs' in the same model
-    setting, those the other setting; CPU seconds beat optimizer seconds at each step; a group
-    with nothing stored to estimate from is counted apart, not as free."""
+    setting, those the other setting, and for a preset last the runs of its algorithm (same
+    setting first); CPU seconds beat optimizer seconds at each step; a group with nothing stored
+    to estimate from is counted apart, not as free."""
     from dataclasses import replace
 
     from localpbo_core.report import (
@@ -487,7 +488,8 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         gp = problem.startswith("gp")
         dim = int(problem[2:].split("_")[0]) if gp else None
         name = "gp_sample" if gp else problem
-        return MissingGroup(spec, problem, variant, alg, n, spec == "gp_within", name, dim)
+        within = spec.endswith("gp_within")
+        return MissingGroup(spec, problem, variant, alg, n, within, name, dim)
 
     runs = [
         run("ablation_noise", "levy32", "gipbo", 0, 100.0, variant="noise0"),
@@ -497,6 +499,10 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         run("gp_within", "gp64_l0.1", "glisp", 0, 600.0, cpu=630.0),
         run("gp_out_of_model", "gp64_l0.5", "glisp", 0, 60.0),
         run("gp_within", "gp96_l0.5", "glisp", 0, 1000.0, cpu=1200.0),
+        run("beyond_hybrid", "styblinskitang64", "hybrid", 0, 300.0, cpu=330.0),
+        run("beyond_hybrid", "styblinskitang64", "turpbo", 0, 30.0, cpu=33.0),
+        run("beyond_hybrid_gp_within", "gp64_l0.1", "hybrid", 0, 500.0),
+        run("synthetic", "levy32", "gipbor", 0, 5.0),
     ]
     expected = {
         ("ablation_noise", "levy32", "noise0", "gipbo"): (100.0, "of the group; optimizer"),
@@ -507,10 +513,27 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
             1200.0,
             "of gp_within, the other model setting; CPU",
         ),
+        ("beyond_hybrid", "styblinskitang64", "", "hybrid_c0.5"): (
+            330.0,
+            "of hybrid, the preset's algorithm; CPU",
+        ),
+        ("beyond_hybrid_gp_out_of_model", "gp64_l0.1", "", "hybrid_local"): (
+            500.0,
+            "of hybrid, the preset's algorithm, the other model setting; optimizer",
+        ),
+        ("beyond_local_steps", "levy32", "", "gipbo_gated"): (
+            400.0,
+            "of gipbo, the preset's algorithm; CPU",
+        ),
     }
     for key, (seconds, basis) in expected.items():
         assert group_cost(runs, group(*key)) == (seconds, f"1 run {basis} seconds"), key
     assert group_cost(runs, group("gp_out_of_model", "gp96_l0.1", "", "glisp")) is None
+    assert group_cost(runs, group("beyond_local_steps", "levy32", "", "gipbor_gated")) == (
+        5.0,
+        "1 run of gipbor, the preset's algorithm; optimizer seconds",
+    )
+    assert group_cost(runs, group("beyond_hybrid", "hartmann6", "", "hybrid_c0.5")) is None
 
     plan = [
         Completion(("c1",), (group("ablation_noise", "levy32", "noise0.2", "gipbo", 9),)),
