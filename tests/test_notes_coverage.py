@@ -15,7 +15,8 @@ import pytest
 
 import localpbo_core.report as report
 from localpbo_core.experiments import load_spec
-from localpbo_core.report import COVERAGE_SEEDS, PAPER_SPECS, coverage_table, noise_table
+from localpbo_core.experiments.coverage import COVERAGE_SEEDS, PAPER_SPECS, coverage_table
+from localpbo_core.report import noise_table
 from localpbo_core.sweep import read_run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -381,7 +382,8 @@ def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) ->
     products (problems × algorithms), leave out the groups the paper did not run (Walker2d
     GIPBO and HB-EI), write where the spec's runs are, and reuse the complete groups of the
     same labels elsewhere."""
-    from localpbo_core.report import StoredRun, completion_commands
+    from localpbo_core.experiments.coverage import completion_commands
+    from localpbo_core.report import StoredRun
     from tests.fabricated import stored_run
 
     def runs(spec: str, problem: str, algorithm: str, seeds: range) -> list[StoredRun]:
@@ -469,13 +471,13 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
     to estimate from is counted apart, not as free."""
     from dataclasses import replace
 
-    from localpbo_core.report import (
+    from localpbo_core.experiments.coverage import (
         Completion,
         MissingGroup,
-        StoredRun,
         completion_costs,
         group_cost,
     )
+    from localpbo_core.report import StoredRun
     from tests.fabricated import stored_run
 
     def run(
