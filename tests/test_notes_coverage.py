@@ -506,35 +506,30 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         run("beyond_hybrid_gp_within", "gp64_l0.1", "hybrid", 0, 500.0),
         run("synthetic", "levy32", "gipbor", 0, 5.0),
     ]
+    preset, other = "the preset's algorithm", "the other model setting"
     expected = {
         ("ablation_noise", "levy32", "noise0", "gipbo"): (100.0, "of the group; optimizer"),
         ("ablation_noise", "levy32", "noise0.2", "gipbo"): (400.0, "of other variants; CPU"),
         ("beyond_local_steps", "levy32", "", "gipbo"): (400.0, "of ablation_noise; CPU"),
         ("gp_out_of_model", "gp64_l0.1", "", "glisp"): (60.0, "of gp64_l0.5; optimizer"),
-        ("gp_out_of_model", "gp96_l0.5", "", "glisp"): (
-            1200.0,
-            "of gp_within, the other model setting; CPU",
-        ),
+        ("gp_out_of_model", "gp96_l0.5", "", "glisp"): (1200.0, f"of gp_within, {other}; CPU"),
         ("beyond_hybrid", "styblinskitang64", "", "hybrid_c0.5"): (
             330.0,
-            "of hybrid, the preset's algorithm; CPU",
+            f"of hybrid, {preset}; CPU",
         ),
         ("beyond_hybrid_gp_out_of_model", "gp64_l0.1", "", "hybrid_local"): (
             500.0,
-            "of hybrid, the preset's algorithm, the other model setting; optimizer",
+            f"of hybrid, {preset}, {other}; optimizer",
         ),
-        ("beyond_local_steps", "levy32", "", "gipbo_gated"): (
-            400.0,
-            "of gipbo, the preset's algorithm; CPU",
+        ("beyond_local_steps", "levy32", "", "gipbo_gated"): (400.0, f"of gipbo, {preset}; CPU"),
+        ("beyond_local_steps", "levy32", "", "gipbor_gated"): (
+            5.0,
+            f"of gipbor, {preset}; optimizer",
         ),
     }
     for key, (seconds, basis) in expected.items():
         assert group_cost(runs, group(*key)) == (seconds, f"1 run {basis} seconds"), key
     assert group_cost(runs, group("gp_out_of_model", "gp96_l0.1", "", "glisp")) is None
-    assert group_cost(runs, group("beyond_local_steps", "levy32", "", "gipbor_gated")) == (
-        5.0,
-        "1 run of gipbor, the preset's algorithm; optimizer seconds",
-    )
     assert group_cost(runs, group("beyond_hybrid", "hartmann6", "", "hybrid_c0.5")) is None
 
     plan = [
