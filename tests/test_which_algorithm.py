@@ -19,10 +19,12 @@ import pytest
 from localpbo_core.experiments.beyond import (
     MAIN_PROBLEMS,
     Standing,
+    best_partners,
     evidence_choice,
     evidence_folders,
     goal_verdicts,
     main_groups,
+    pair_reach,
     standings,
     which_algorithm_section,
 )
@@ -133,6 +135,39 @@ def test_counts_by_hand() -> None:
     assert verdicts == ["met (16)", "met (4)", "missed by 2 (2)", "met (14)"]
 
 
+def test_pair_reach_by_hand() -> None:
+    """Final best-seen: the hybrid best or tied on i < 16, TuRPBO on i >= 4, so either on all
+    18; final cumulative: the hybrid on i < 14, TuRPBO on i >= 10, so either on all 18. Sobol
+    adds nothing to either; hybrid_c0.5 (Sobol's values) neither, and it misses Walker2d."""
+    runs = fixture_runs()
+    runs += _sobol_as_hybrid_c05(runs, without="walker2d")
+    reach = {r.pair: r for r in pair_reach(main_groups(runs, 0.05))}
+    both = ("hybrid", "turpbo")
+    assert [r.pair for r in pair_reach(main_groups(runs, 0.05))][:3] == [
+        both,
+        ("hybrid", "hybrid_c0.5"),
+        ("hybrid", "sobol"),
+    ]
+    assert (reach[both].run, reach[both].best_final, reach[both].best_cumulative) == (18, 18, 18)
+    assert reach[both].neither == ()
+    hs = reach[("hybrid", "sobol")]
+    assert (hs.run, hs.best_final, hs.best_cumulative) == (18, 16, 14)
+    assert hs.neither == tuple(f"{s}/{p}" for s, p in MAIN_PROBLEMS[16:])
+    st = reach[("sobol", "turpbo")]
+    assert (st.best_final, st.best_cumulative) == (14, 8)
+    assert st.neither == tuple(f"{s}/{p}" for s, p in MAIN_PROBLEMS[:4])
+    hc = reach[("hybrid_c0.5", "sobol")]
+    assert (hc.run, hc.best_final, hc.best_cumulative, len(hc.neither)) == (18, 0, 0, 18)
+    assert len(reach) == 6
+    partners = best_partners(pair_reach(main_groups(runs, 0.05)))
+    assert {a: r.partner(a) for a, r in partners.items()} == {
+        "hybrid": "turpbo",
+        "turpbo": "hybrid",
+        "hybrid_c0.5": "hybrid",
+        "sobol": "hybrid",
+    }
+
+
 def test_merging_rules() -> None:
     """Paper-spec labels keep the paper spec's runs; other conditions, variants, other specs
     and incomplete seeds are left out."""
@@ -221,6 +256,7 @@ def test_section_renders() -> None:
         _record("hybrid", {"confidence": 2}, "hartmann6", 0.5),
     ]
     text = "\n".join(which_algorithm_section(runs, 0.05, records))
+    late = [f"{s}/{p}" for s, p in MAIN_PROBLEMS[16:]]  # the hybrid 1 below TuRPBO
     assert text.startswith("## Which algorithm to run\n")
     assert "| hybrid | 18 | 16 | 14 | 4 | 2 | 2× |" in text
     assert "| turpbo | 18 | 14 | 8 | — | — | — |" in text
@@ -246,6 +282,14 @@ def test_section_renders() -> None:
     assert f"candidates): {same}." in text
     assert "local steps 0 of 120 asks (0 %): TuRPBO's candidates throughout" in text
     assert "hybrid (confidence=2) per run" not in text
+    assert "Per algorithm, the partner with which it reaches the most (then by name):" in text
+    rows = [line for line in text.splitlines() if line.count("|") == 7 and "| 18 |" in line]
+    assert rows == [
+        "| hybrid | turpbo | 18 | 18 | 18 | — |",
+        "| turpbo | hybrid | 18 | 18 | 18 | — |",
+        "| hybrid_c0.5 | hybrid | 18 | 16 | 14 | " + ", ".join(late) + " |",
+        "| sobol | hybrid | 18 | 16 | 14 | " + ", ".join(late) + " |",
+    ]
     # Sobol's values under another label of the hybrid: tied with Sobol, 18 below TuRPBO
     assert "| hybrid_c0.5 | not" not in text
     assert (
@@ -363,3 +407,26 @@ def test_the_algorithms_page_states_hybrid_local_as_stored(stored_table: list[St
     assert local.run == 17 and "policy_warm_start/walker2d" not in local.problems
     assert local.best_cumulative > default.best_cumulative
     assert local.best_final < default.best_final
+
+
+def test_the_algorithms_page_states_the_pair_bound() -> None:
+    """docs/algorithms.md: with hindsight TuRPBO + GIPBO is best or tied on 17 of 18 (all but
+    Styblinski-Tang 64), TuRPBO + GIPBOr on 16, no pair on 18; hybrid_local is best or tied on
+    Styblinski-Tang 64 where TuRPBO and GIPBOr are not."""
+    from localpbo_core.report import load_runs
+
+    text = " ".join((ROOT / "docs" / "algorithms.md").read_text().split())
+    assert (
+        "TuRPBO with GIPBO reaches 17 of the 18 problems that way (all but Styblinski-Tang 64), "
+        "TuRPBO with GIPBOr 16, and no pair reaches 18." in text
+    )
+    assert "`hybrid_local` does on Styblinski-Tang 64 (best or tied there, TuRPBO and" in text
+    groups = main_groups(load_runs(evidence_folders(ROOT / "docs" / "results")), 0.05)
+    reach = {r.pair: r for r in pair_reach(groups)}
+    gipbo = reach[("gipbo", "turpbo")]
+    assert (gipbo.best_final, gipbo.neither) == (17, ("synthetic/styblinskitang64",))
+    assert reach[("gipbor", "turpbo")].best_final == 16
+    assert max(r.best_final for r in reach.values()) < len(MAIN_PROBLEMS)
+    st64 = next(g for g in groups if g.name == "synthetic/styblinskitang64")
+    tied = st64.ranking("best")[1]
+    assert tied["hybrid_local"] and not tied["turpbo"] and not tied["gipbor"]

@@ -41,6 +41,14 @@ count in final cumulative, then by name. ``localpbo run`` and the optimizer node
 the test suite fails when they do not. A label of a configured variant can be the default
 because the ``beyond_*`` specs name their variants by preset (:mod:`localpbo_core.presets`).
 
+**What a choice between two algorithms could reach** (:func:`pair_reach`): for every pair of
+algorithms, the problems where either is best or tied (final best-seen; final cumulative). A
+hybrid that picks one of two algorithms per problem (e.g. TuRPBO's region or GIPBOr's local
+steps) is best or tied at most there, and only if it always picks the right one: hindsight that
+a real hybrid has to replace by what its own duels tell it. So the count bounds any such
+selector from above, and a goal beyond every pair's count is beyond every selector of two
+stored algorithms.
+
 **The hybrid's goal** (:data:`HYBRID_GOALS`): best or tied on at least 16 of the 18 problems
 in final best-seen, significantly above TuRPBO on at least 3, significantly below it on none,
 best or tied in final cumulative on at least 12. Each is "met", "missed by k" (k short of
@@ -64,6 +72,7 @@ most the bound, "missed" when one exceeds it, "not measured" without a record.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Sequence
@@ -282,6 +291,63 @@ def standings(groups: Sequence[Group], alpha: float) -> list[Standing]:
             )
         )
     return sorted(out, key=lambda s: (-s.best_final, -s.best_cumulative, s.algorithm))
+
+
+@dataclass(frozen=True)
+class PairReach:
+    """Two algorithms and the problems where either is best or tied (module docstring)."""
+
+    pair: tuple[str, str]
+    run: int
+    """Problems either ran."""
+    best_final: int
+    best_cumulative: int
+    neither: tuple[str, ...]
+    """The problems (``spec/label``) either ran where neither is best or tied in final
+    best-seen."""
+
+    def partner(self, algorithm: str) -> str:
+        """The other algorithm of the pair."""
+        return self.pair[1] if self.pair[0] == algorithm else self.pair[0]
+
+
+def pair_reach(groups: Sequence[Group]) -> list[PairReach]:
+    """Every pair of the algorithms of ``groups`` (module docstring), most best-or-tied
+    problems in final best-seen first, then in final cumulative, then by names."""
+    tied: dict[tuple[str, str], set[str]] = {}
+    ran: dict[str, set[str]] = {}
+    for g in groups:
+        for a in g.best:
+            ran.setdefault(a, set()).add(g.name)
+        for metric in ("best", "cumulative"):
+            for a, t in g.ranking(metric)[1].items():
+                members = tied.setdefault((a, metric), set())
+                if t:
+                    members.add(g.name)
+    out = []
+    for a, b in itertools.combinations(sorted(ran), 2):
+        final = tied[(a, "best")] | tied[(b, "best")]
+        either = ran[a] | ran[b]
+        out.append(
+            PairReach(
+                (a, b),
+                len(either),
+                len(final),
+                len(tied[(a, "cumulative")] | tied[(b, "cumulative")]),
+                tuple(g.name for g in groups if g.name in either - final),
+            )
+        )
+    return sorted(out, key=lambda r: (-r.best_final, -r.best_cumulative, r.pair))
+
+
+def best_partners(reach: Sequence[PairReach]) -> dict[str, PairReach]:
+    """Per algorithm, its first pair in ``reach`` (:func:`pair_reach`'s order), in that
+    order."""
+    out: dict[str, PairReach] = {}
+    for r in reach:
+        for a in r.pair:
+            out.setdefault(a, r)
+    return out
 
 
 def evidence_choice(table: Sequence[Standing]) -> str | None:
@@ -510,6 +576,26 @@ def which_algorithm_section(
                 + "; ".join(f"{p} {k} of {n}" for p, (k, n) in same.items())
                 + ".",
             ]
+    partners = best_partners(pair_reach(groups))
+    if partners:
+        lines += [
+            "",
+            "**What a choice between two algorithms could reach**: a hybrid that picks one "
+            "of two algorithms per problem is best or tied at most where either of them is, "
+            "and only if it always picks the right one, in hindsight; a real hybrid has to "
+            "tell from its own duels. So a pair's count bounds every such hybrid from above. "
+            "Per algorithm, the partner with which it reaches the most (then by name):",
+            "",
+            f"| algorithm | partner | problems either ran (of {total}) "
+            "| best or tied: final best-seen | best or tied: final cumulative "
+            "| neither best or tied in final best-seen |",
+            "| --- | --- | ---: | ---: | ---: | --- |",
+        ]
+        lines += [
+            f"| {a} | {r.partner(a)} | {r.run} | {r.best_final} | {r.best_cumulative} | "
+            f"{', '.join(r.neither) or '—'} |"
+            for a, r in partners.items()
+        ]
     measured = [r for r in records if _record_label(r) in hybrids]
     if measured:
         lines += ["", "Decision-time records (`docs/diagnosis/`):", ""]
