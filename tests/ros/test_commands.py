@@ -8,6 +8,8 @@ import json
 from localpbo_ros.commands import add_subcommands, main, run_settings
 from localpbo_ros.optimizer_node import PARAMS, config_from_settings
 
+from localpbo_core.settings import DEFAULT_ALGORITHM
+
 
 def parse(argv):
     parser = argparse.ArgumentParser()
@@ -23,7 +25,7 @@ def test_default_run_is_the_default_algorithm_on_swimmer() -> None:
     settings["task_options"] = {}
     config = config_from_settings(settings)
     assert (config.algorithm, config.task, config.budget, config.dim) == (
-        "gipbor",
+        DEFAULT_ALGORITHM,
         "swimmer",
         162,
         16,
