@@ -246,7 +246,10 @@ def test_one_more_hypothesis_never_lowers_a_holm_adjusted_p(seed: int) -> None:
     assert all(a >= b for a, b in zip(after, before, strict=False))
 
 
-def test_section_renders() -> None:
+def test_section_renders(monkeypatch: pytest.MonkeyPatch) -> None:
+    import localpbo_core.settings
+
+    monkeypatch.setattr(localpbo_core.settings, "DEFAULT_ALGORITHM", "gipbor")
     runs = fixture_runs()
     runs += _sobol_as_hybrid_c05(runs)
     records = [
@@ -262,7 +265,10 @@ def test_section_renders() -> None:
     assert "| turpbo | 18 | 14 | 8 | — | — | — |" in text
     assert "`beyond_*` specs with stored runs: beyond_hybrid, beyond_hybrid_gp_out_of_model" in text
     assert "It picks **hybrid** (best or tied on 16 of 18 in final best-seen, 14 in final " in text
-    assert f"the code's default (`DEFAULT_ALGORITHM`) is {DEFAULT_ALGORITHM}: they differ" in text
+    assert "the code's default (`DEFAULT_ALGORITHM`) is gipbor: they differ" in text
+    monkeypatch.setattr(localpbo_core.settings, "DEFAULT_ALGORITHM", "hybrid")
+    agreeing = "\n".join(which_algorithm_section(runs, 0.05, records))
+    assert "used by `localpbo run` and the optimizer node) is the same." in agreeing
     assert "`localpbo run --algorithm hybrid` runs it." in text
     assert (
         "| hybrid | met (16) | met (4) | missed by 2 (2) | met (14) "
@@ -430,3 +436,17 @@ def test_the_algorithms_page_states_the_pair_bound() -> None:
     st64 = next(g for g in groups if g.name == "synthetic/styblinskitang64")
     tied = st64.ranking("best")[1]
     assert tied["hybrid_local"] and not tied["turpbo"] and not tied["gipbor"]
+
+
+def test_the_algorithms_page_states_the_hybrids_counts(stored_table: list[Standing]) -> None:
+    """docs/algorithms.md, "Where the hybrid's goal stands": on all 18 problems, best or tied
+    in final best-seen on 14, above TuRPBO on none, best or tied in final cumulative on 10,
+    below TuRPBO on none."""
+    text = " ".join((ROOT / "docs" / "algorithms.md").read_text().split())
+    assert (
+        "the hybrid is best or tied in final best-seen on 14 of 18 (goal: 16), significantly "
+        "above TuRPBO on none (goal: 3) and best or tied in final cumulative value on 10 (goal: "
+        "12); it is significantly below TuRPBO on none" in text
+    )
+    h = _by_name(stored_table)["hybrid"]
+    assert (h.run, h.best_final, h.above, h.best_cumulative, h.below) == (18, 14, 0, 10, 0)
