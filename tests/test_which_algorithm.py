@@ -28,6 +28,7 @@ from localpbo_core.experiments.beyond import (
     standings,
     which_algorithm_section,
 )
+from localpbo_core.experiments.claims import Group
 from localpbo_core.report import StoredRun
 from localpbo_core.settings import DEFAULT_ALGORITHM
 from tests.fabricated import stored_run as _run
@@ -141,9 +142,10 @@ def test_pair_reach_by_hand() -> None:
     adds nothing to either; hybrid_c0.5 (Sobol's values) neither, and it misses Walker2d."""
     runs = fixture_runs()
     runs += _sobol_as_hybrid_c05(runs, without="walker2d")
-    reach = {r.pair: r for r in pair_reach(main_groups(runs, 0.05))}
+    ordered = pair_reach(main_groups(runs, 0.05))
+    reach = {r.pair: r for r in ordered}
     both = ("hybrid", "turpbo")
-    assert [r.pair for r in pair_reach(main_groups(runs, 0.05))][:3] == [
+    assert [r.pair for r in ordered][:3] == [
         both,
         ("hybrid", "hybrid_c0.5"),
         ("hybrid", "sobol"),
@@ -159,7 +161,7 @@ def test_pair_reach_by_hand() -> None:
     hc = reach[("hybrid_c0.5", "sobol")]
     assert (hc.run, hc.best_final, hc.best_cumulative, len(hc.neither)) == (18, 0, 0, 18)
     assert len(reach) == 6
-    partners = best_partners(pair_reach(main_groups(runs, 0.05)))
+    partners = best_partners(ordered)
     assert {a: r.partner(a) for a, r in partners.items()} == {
         "hybrid": "turpbo",
         "turpbo": "hybrid",
@@ -365,12 +367,17 @@ def test_decision_time_benchmark_writes_its_record(tmp_path: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def stored_table() -> list[Standing]:
-    """:func:`standings` of the stored runs (paper specs and beyond_* specs), alpha 0.05."""
+def stored_groups() -> list[Group]:
+    """:func:`main_groups` of the stored runs (paper specs and beyond_* specs), alpha 0.05."""
     from localpbo_core.report import load_runs
 
-    runs = load_runs(evidence_folders(ROOT / "docs" / "results"))
-    return standings(main_groups(runs, 0.05), 0.05)
+    return main_groups(load_runs(evidence_folders(ROOT / "docs" / "results")), 0.05)
+
+
+@pytest.fixture(scope="module")
+def stored_table(stored_groups: list[Group]) -> list[Standing]:
+    """:func:`standings` of :func:`stored_groups`."""
+    return standings(stored_groups, 0.05)
 
 
 def test_default_algorithm_is_the_evidence_choice(stored_table: list[Standing]) -> None:
@@ -415,19 +422,17 @@ def test_the_algorithms_page_states_hybrid_local_as_stored(stored_table: list[St
     assert local.best_final < default.best_final
 
 
-def test_the_algorithms_page_states_the_pair_bound() -> None:
+def test_the_algorithms_page_states_the_pair_bound(stored_groups: list[Group]) -> None:
     """docs/algorithms.md: with hindsight TuRPBO + GIPBO is best or tied on 17 of 18 (all but
     Styblinski-Tang 64), TuRPBO + GIPBOr on 16, no pair on 18; hybrid_local is best or tied on
     Styblinski-Tang 64 where TuRPBO and GIPBOr are not."""
-    from localpbo_core.report import load_runs
-
     text = " ".join((ROOT / "docs" / "algorithms.md").read_text().split())
     assert (
         "TuRPBO with GIPBO reaches 17 of the 18 problems that way (all but Styblinski-Tang 64), "
         "TuRPBO with GIPBOr 16, and no pair reaches 18." in text
     )
     assert "`hybrid_local` does on Styblinski-Tang 64 (best or tied there, TuRPBO and" in text
-    groups = main_groups(load_runs(evidence_folders(ROOT / "docs" / "results")), 0.05)
+    groups = stored_groups
     reach = {r.pair: r for r in pair_reach(groups)}
     gipbo = reach[("gipbo", "turpbo")]
     assert (gipbo.best_final, gipbo.neither) == (17, ("synthetic/styblinskitang64",))

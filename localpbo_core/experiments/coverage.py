@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from localpbo_core.experiments.paper import PAPER_SECONDS, PAPER_SEEDS, paper_seconds, problem_key
+from localpbo_core.presets import PRESETS
 
 if TYPE_CHECKING:
     from localpbo_core.report import StoredRun
@@ -258,8 +259,6 @@ def group_cost(runs: Sequence[StoredRun], group: MissingGroup) -> tuple[float, s
     options change how the algorithm spends its steps, not what one step costs, so read these
     as a guide). Runs with CPU seconds are preferred over those without at each step. None when
     no such run is stored."""
-    from localpbo_core.presets import PRESETS
-
     g = group
     same = [r for r in runs if (r.problem_label, r.algorithm_label) == (g.problem, g.algorithm)]
     kin = [
