@@ -103,6 +103,8 @@ ALGORITHM_MODULES: dict[str, tuple[str, ...]] = {
         "trust_region.py",
         "acquisition.py",
         "prefsqp.py",
+        "local_phase.py",
+        "gi_acquisition.py",
     ),
 }
 """Each algorithm's own modules under ``localpbo_core/optimizers``."""

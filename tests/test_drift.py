@@ -184,3 +184,39 @@ def test_a_copy_is_dated_by_its_source_as_it_was_copied() -> None:
     added = _git("show", "--raw", "--no-abbrev", "--format=", commit)
     assert any(line.split()[3] == old_blob for line in added.splitlines())
     assert old_blob != _git("rev-parse", f"HEAD:{source}")
+
+
+def test_an_algorithm_digest_covers_the_optimizer_modules_it_imports() -> None:
+    """Each module an algorithm's own modules import from ``localpbo_core.optimizers``
+    (directly or through another of them) is in its digest: a change to it can change the
+    algorithm's runs."""
+    import ast
+
+    from localpbo_core.provenance import ALGORITHM_MODULES, ROOT, SHARED_ALGORITHM_SOURCES
+
+    folder = ROOT / "localpbo_core" / "optimizers"
+    shared = {Path(s).name for s in SHARED_ALGORITHM_SOURCES}
+
+    def imported(module: str) -> set[str]:
+        tree = ast.parse((folder / module).read_text())
+        prefix = "localpbo_core.optimizers."
+        return {
+            node.module.removeprefix(prefix) + ".py"
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom)
+            and node.module is not None
+            and node.module.startswith(prefix)
+        }
+
+    uncovered = {}
+    for algorithm, own in ALGORITHM_MODULES.items():
+        seen, todo = set(), list(own)
+        while todo:
+            module = todo.pop()
+            if module in seen or module in shared:
+                continue
+            seen.add(module)
+            todo += imported(module)
+        if missing := sorted(seen - set(own)):
+            uncovered[algorithm] = missing
+    assert uncovered == {}

@@ -37,11 +37,29 @@ box; off by default).
 "can't tell" answer is no win), or when the step would not leave the center (a corner), or
 when the trust region restarts.
 
-Every iteration, global or local, updates the trust region's counters as a TuRPBO iteration
-(success iff the new point beats the center), so local failures shrink the region the global
-phase returns to, and local wins count towards its expansion. Restarts and the challenge duel
-of a new center against the global incumbent are TuRPBO's. With ``q > 1`` a local step still
-asks one candidate.
+**Probes** (``probes_per_dim > 0``; off by default): a local phase at origin ``x_o`` (the
+center at the handover, the new center after a winning step) first asks
+``m = ceil(probes_per_dim * d)`` probes, GIPBOr's random local queries around ``x_o`` (App.
+C.3: a uniform direction ``u``, a radius ``r``, projected onto the cube). With
+``probe_metric="kernel"`` (default) ``r`` is uniform in ``[0.5, 2]`` in the kernel metric,
+
+    ``x = Pi(x_o + r l * u)``   (elementwise; ``l`` the lengthscales of the fit that started
+    the phase, so ``sqrt((x - x_o)^T Lambda (x - x_o)) = r`` before the projection),
+
+which is GIPBOr's region ``[0.05, 0.2]`` where ``l = 0.1`` and scales with the model elsewhere;
+``"euclidean"`` takes GIPBOr's region ``[0.05, 0.2]`` whatever ``l``. Each probe is dueled
+against the center, and then the phase steps from ``x_o``, the gradient read at ``x_o``: a fit
+that has seen duels around ``x_o`` in every direction (GIPBOr's phase, ``M = d`` with
+``probes_per_dim = 1``) rather than only the trust region's candidates. A probe asks no fit;
+it is a trust-region iteration as any other (a win moves the center, so the step is dueled
+against the phase's best point so far), and neither a win nor a loss counts towards
+``stall_duels``. A losing step halves the next, from the same origin, without new probes.
+
+Every iteration, global, probe or local, updates the trust region's counters as a TuRPBO
+iteration (success iff the new point beats the center), so local failures shrink the region
+the global phase returns to, and local wins count towards its expansion. Restarts and the
+challenge duel of a new center against the global incumbent are TuRPBO's. With ``q > 1`` a
+local step (and a probe) still asks one candidate.
 """
 
 from __future__ import annotations
@@ -52,6 +70,11 @@ import numpy as np
 import torch
 
 from localpbo_core.optimizers.base import Ask, Candidate, DuelAnswer
+from localpbo_core.optimizers.gi_acquisition import (
+    DEFAULT_BOUNDS,
+    random_local_query,
+    sphere_directions,
+)
 from localpbo_core.optimizers.prefsqp import kernel_normalized_step, negative_definite_modification
 from localpbo_core.optimizers.turpbo import TuRPBO, TuRPBOOptions
 from localpbo_core.surrogate.data import DUPLICATE_ATOL
@@ -59,7 +82,10 @@ from localpbo_core.surrogate.protocol import Surrogate
 from localpbo_core.validation import check_choice, check_float, check_int
 
 LOCAL_DIRECTIONS = ("gradient", "newton")
-MODES = ("global", "local")
+MODES = ("global", "probe", "local")
+PROBE_METRICS = ("kernel", "euclidean")
+KERNEL_PROBE_BOUNDS = (0.5, 2.0)
+"""Radii of the probes in the kernel metric (module docstring)."""
 
 
 def slope_confidence(g: np.ndarray, u: np.ndarray, sigma: np.ndarray) -> float:
@@ -92,6 +118,10 @@ class Hybrid(TuRPBO):
         eigenvalue_floor: relative floor of the Newton direction's eigenvalue modification.
         handover_length: also hand over when the trust region's side is at most this
             (default 0: off; module docstring).
+        probes_per_dim: probes per local phase over ``d`` (default 0: none; module
+            docstring).
+        probe_metric: ``"kernel"`` (default) or ``"euclidean"``: where the probes' radii are
+            measured (module docstring).
     """
 
     name = "hybrid"
@@ -108,6 +138,8 @@ class Hybrid(TuRPBO):
         cooldown: int = 4,
         eigenvalue_floor: float = 1e-6,
         handover_length: float = 0.0,
+        probes_per_dim: float = 0.0,
+        probe_metric: str = "kernel",
         **turpbo: Unpack[TuRPBOOptions],
     ) -> None:
         super().__init__(dim, seed, budget, **turpbo)
@@ -120,6 +152,14 @@ class Hybrid(TuRPBO):
             "eigenvalue_floor", eigenvalue_floor, minimum=0.0, maximum=1.0, minimum_open=True
         )
         self.handover_length = check_float("handover_length", handover_length, minimum=0.0)
+        self.probes_per_dim = check_float("probes_per_dim", probes_per_dim, minimum=0.0)
+        self.probe_metric = check_choice("probe_metric", probe_metric, PROBE_METRICS)
+        #: Probes per local phase, ``ceil(probes_per_dim * d)``.
+        self.probes = int(np.ceil(self.probes_per_dim * self.dim))
+        self._probes_left = 0
+        self._asked_probe = False
+        self._origin: np.ndarray | None = None  # the phase's probes' and steps' origin
+        self._origin_scale = np.ones(self.dim)  # lengthscales of the fit that started it
         self.mode = "global"
         self._losses = 0  # consecutive losing local steps
         self._cooldown_left = 0
@@ -129,6 +169,12 @@ class Hybrid(TuRPBO):
         self.modes: list[str] = []
         #: ``z`` of every handover check, in order (inspection, tests).
         self.confidences: list[float] = []
+
+    @property
+    def origin(self) -> np.ndarray | None:
+        """The current local phase's origin: its probes' center and its steps' start (module
+        docstring); None without probes or outside a local phase."""
+        return None if self._origin is None else self._origin.copy()
 
     # ------------------------------------------------------------------ model
     def _fit(self) -> Surrogate:
@@ -162,23 +208,30 @@ class Hybrid(TuRPBO):
     # ------------------------------------------------------------------ ask
     def _propose(self, remaining: int) -> Ask:
         self._asked_local = False
+        self._asked_probe = False
         if self._restart_pending:
             self.modes.append("global")
         return super()._propose(remaining)
 
     def _select(self, q: int, rng: np.random.Generator) -> np.ndarray:
-        surrogate = self._fit()
         assert self._center_id is not None
         center = np.asarray(self._candidates[self._center_id].theta, dtype=np.float64)
+        if self.mode == "local" and self._probes_left > 0:
+            return self._probe(rng)
+        surrogate = self._fit()
+        origin = center if self._origin is None or self.mode == "global" else self._origin
         if self.mode == "local" or self._cooldown_left == 0:
-            step, z = self._local_step(surrogate, center)
+            step, z = self._local_step(surrogate, origin)
             if self.mode == "global":
                 self.confidences.append(z)
                 if z >= self.confidence or self.tr.length <= self.handover_length:
                     self.mode = "local"
                     self._losses = 0
+                    self._start_phase(center, surrogate)
+                    if self._probes_left > 0:
+                        return self._probe(rng)
         if self.mode == "local":
-            point = np.clip(center + step * 0.5**self._losses, 0.0, 1.0)
+            point = np.clip(origin + step * 0.5**self._losses, 0.0, 1.0)
             if np.max(np.abs(point - center)) > DUPLICATE_ATOL:
                 self._asked_local = True
                 self.modes.append("local")
@@ -187,10 +240,30 @@ class Hybrid(TuRPBO):
         self.modes.append("global")
         return super()._select(q, rng)
 
+    def _start_phase(self, origin: np.ndarray, surrogate: Surrogate) -> None:
+        """A local phase at ``origin``: its probes, then steps from it (module docstring);
+        ``surrogate``'s lengthscales scale the probes in the kernel metric."""
+        self._probes_left = self.probes
+        self._origin = origin.copy() if self.probes > 0 else None
+        self._origin_scale = surrogate.lengthscale.detach().numpy().reshape(-1).copy()
+
+    def _probe(self, rng: np.random.Generator) -> np.ndarray:
+        """One probe of the local phase (module docstring), as a one-row batch."""
+        assert self._origin is not None
+        self._asked_probe = True
+        self.modes.append("probe")
+        if self.probe_metric == "euclidean":
+            return random_local_query(self._origin, rng, DEFAULT_BOUNDS)[None, :]
+        u = sphere_directions(1, self.dim, rng)[0]
+        r = rng.uniform(*KERNEL_PROBE_BOUNDS)
+        return np.clip(self._origin + r * self._origin_scale * u, 0.0, 1.0)[None, :]
+
     # ------------------------------------------------------------------ tell
     def _hand_back(self) -> None:
         self.mode = "global"
         self._losses = 0
+        self._probes_left = 0
+        self._origin = None
         self._cooldown_left = self.cooldown
 
     def _on_step_complete(
@@ -205,9 +278,15 @@ class Hybrid(TuRPBO):
             self._hand_back()
             self._cooldown_left = 0
             return
-        if self._asked_local:
+        if self._asked_probe:
+            self._probes_left -= 1
+        elif self._asked_local:
             if last.success:
                 self._losses = 0
+                assert self._center_id is not None
+                surrogate = self._refitter.surrogate  # the fit of this step's ask
+                assert surrogate is not None
+                self._start_phase(np.asarray(self._candidates[self._center_id].theta), surrogate)
             else:
                 self._losses += 1
                 if self._losses >= self.stall_duels:

@@ -5,6 +5,7 @@ validated tells and "can't tell" answers."""
 from __future__ import annotations
 
 import copy
+import re
 from collections.abc import Iterator
 
 import numpy as np
@@ -44,8 +45,8 @@ def _drive_by_theta(opt: PreferenceOptimizer) -> list[np.ndarray]:
 
 def _local_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, Surrogate, torch.Tensor]]:
     """Drive ``opt`` noise-free on ``utility``; yield every ask of a local step, before it is
-    answered, with the center, the surrogate and the center's theta as a tensor (duels the
-    caller answers are not answered again)."""
+    answered, with the center, the surrogate and the step's origin (the center, or with probes
+    the phase's origin) as a tensor (duels the caller answers are not answered again)."""
     values: dict[int, float] = {}
     while not opt.done:
         before = len(opt.modes)
@@ -55,7 +56,8 @@ def _local_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, Surrogate, torch.
         if len(opt.modes) > before and opt.modes[-1] == "local":
             center, sur = opt.center, opt.surrogate
             assert center is not None and sur is not None
-            yield ask, center, sur, torch.tensor(center.theta, dtype=torch.float64)
+            origin = center.theta if opt.origin is None else opt.origin
+            yield ask, center, sur, torch.tensor(origin, dtype=torch.float64)
         if opt.pending_duels == tuple(ask.duels):
             opt.tell(judged(values, ask.duels))
 
@@ -97,20 +99,32 @@ def test_until_the_first_handover_it_asks_turpbos_candidates() -> None:
     assert not np.array_equal(a[n], b[n])
 
 
-def test_local_step_is_the_kernel_metric_gradient_step() -> None:
-    opt = make_optimizer("hybrid", 3, seed=1, budget=32, confidence=0.0, stall_duels=100)
+@pytest.mark.parametrize("probes_per_dim", [0.0, 1.0])
+def test_local_step_is_the_kernel_metric_gradient_step(probes_per_dim: float) -> None:
+    """The step from the fit of its own ask, which has seen the phase's probes."""
+    opt = make_optimizer(
+        "hybrid",
+        3,
+        seed=1,
+        budget=32 + 12 * int(probes_per_dim),
+        confidence=0.0,
+        stall_duels=100,
+        probes_per_dim=probes_per_dim,
+    )
     assert isinstance(opt, Hybrid)
-    checked = 0
+    checked = moved = 0
     for ask, center, sur, x in _local_asks(opt):
         assert len(ask.candidates) == 1
         g = sur.mean_gradient(x).detach().numpy()
         ls = sur.lengthscale.detach().numpy()
         eta = 0.5 * 0.5**opt._losses
-        expected = np.clip(center.theta + eta * g / np.sqrt(np.sum(g**2 / ls**2)), 0, 1)
+        expected = np.clip(x.numpy() + eta * g / np.sqrt(np.sum(g**2 / ls**2)), 0, 1)
         np.testing.assert_allclose(ask.candidates[0].theta, expected, atol=1e-12)
         assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
         checked += 1
+        moved += not np.array_equal(x.numpy(), center.theta)
     assert checked >= 10
+    assert (moved > 0) == (probes_per_dim > 0)  # a probe won: the step still starts at x_o
 
 
 def test_newton_direction_option() -> None:
@@ -232,15 +246,19 @@ def test_validation_names_the_field() -> None:
         ({"step_size": 0.0}, "step_size"),
         ({"stall_duels": 0}, "stall_duels"),
         ({"cooldown": -1}, "cooldown"),
+        ({"probes_per_dim": -0.5}, "probes_per_dim"),
+        ({"probe_metric": "chebyshev"}, "probe_metric"),
         ({"acquisition": "ucb"}, "acquisition"),
     ):
         with pytest.raises(ValueError, match=field):
             make_optimizer("hybrid", 3, **kw)
 
 
-def test_resume_replays_recorded_answers_into_the_same_run() -> None:
+@pytest.mark.parametrize("probes_per_dim", [0.0, 0.5])
+def test_resume_replays_recorded_answers_into_the_same_run(probes_per_dim: float) -> None:
     """A resumed run (``localpbo run --resume``) rebuilds the session and re-feeds the recorded
-    answers in order; the hybrid then asks the same candidates, local steps included."""
+    answers in order; the hybrid then asks the same candidates, local steps (and probes)
+    included."""
     from localpbo_core.session import Answer, Session
     from localpbo_core.settings import RunSettings
 
@@ -251,7 +269,7 @@ def test_resume_replays_recorded_answers_into_the_same_run() -> None:
         budget=30,
         tie_threshold=0.5,
         indifference=0.05,
-        optimizer_options={"confidence": 0.0},
+        optimizer_options={"confidence": 0.0, "probes_per_dim": probes_per_dim},
     )
 
     def live(session: Session, answers: list[Answer], stop: int | None = None) -> list[bytes]:
@@ -277,7 +295,8 @@ def test_resume_replays_recorded_answers_into_the_same_run() -> None:
     recorded: list[Answer] = []
     original = Session(settings)
     full = live(original, recorded)
-    assert "local" in original.optimizer.modes  # type: ignore[attr-defined]
+    modes = original.optimizer.modes  # type: ignore[attr-defined]
+    assert "local" in modes and ("probe" in modes) == (probes_per_dim > 0)
     # resume: replay the first answers (every ask they answer), then continue live
     resumed = Session(settings)
     replayed: list[bytes] = []
@@ -290,3 +309,116 @@ def test_resume_replays_recorded_answers_into_the_same_run() -> None:
             assert resumed.offer(next(it)).accepted
     rest = live(resumed, list(recorded[:17]))
     assert replayed + rest == full
+
+
+def _probe_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, np.ndarray]]:
+    """Drive ``opt`` noise-free on ``utility``; yield every probe ask before it is answered,
+    with the center and the phase's origin it was asked at."""
+    values: dict[int, float] = {}
+    while not opt.done:
+        before = len(opt.modes)
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        if len(opt.modes) > before and opt.modes[-1] == "probe":
+            assert opt.center is not None and opt.origin is not None
+            yield ask, opt.center, opt.origin
+        opt.tell(judged(values, ask.duels))
+
+
+@pytest.mark.parametrize("metric", ["kernel", "euclidean"])
+def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str) -> None:
+    """A probe: one candidate at distance in [0.05, 0.2] from the phase's origin (GIPBOr's
+    region; ``kernel``: at distance in [0.5, 2] in the metric of the lengthscales of the fit
+    that started the phase), before projection onto the cube, dueled against the center, and
+    no refit. The origin is the center at the phase's start; a winning probe moves the center
+    only."""
+    opt = make_optimizer(
+        "hybrid", 5, seed=4, budget=80, confidence=0.0, probes_per_dim=1.0, probe_metric=metric
+    )
+    assert isinstance(opt, Hybrid) and opt.probes == 5
+    fits: dict[int, object] = {}  # mode index of a probe -> the model after its ask
+    checked = 0
+    away = 0
+    for ask, center, origin in _probe_asks(opt):
+        fits[len(opt.modes) - 1] = opt._refitter.surrogate
+        assert len(ask.candidates) == 1
+        theta = ask.candidates[0].theta
+        assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
+        if np.all((theta > 0) & (theta < 1)):
+            if metric == "euclidean":
+                assert 0.05 <= np.linalg.norm(theta - origin) <= 0.2
+            else:
+                scale = opt._origin_scale
+                assert 0.5 <= np.linalg.norm((theta - origin) / scale) <= 2.0
+        checked += 1
+        away += not np.array_equal(origin, center.theta)
+    assert checked >= 15 and away > 0
+    # consecutive probes of a phase share the fit of the ask before them: no refit
+    following = [i for i in fits if i - 1 in fits]
+    assert len(following) >= 10
+    assert all(fits[i] is fits[i - 1] for i in following)
+
+
+def test_a_phase_is_probes_then_steps() -> None:
+    """Handover: ``ceil(probes_per_dim d)`` probes, then steps; a winning step starts a new
+    phase of probes, a losing one halves the next step without probes, ``stall_duels`` losing
+    steps hand back; a restart of the region (the fresh point, "R") or the budget's end cuts a
+    phase short."""
+    opt = make_optimizer(
+        "hybrid", 4, seed=1, budget=60, confidence=0.0, probes_per_dim=0.75, stall_duels=3
+    )
+    assert isinstance(opt, Hybrid) and opt.probes == 3
+    trace = ""  # per ask after the initial design: p/l/g, upper case if its candidate won
+    values: dict[int, float] = {}
+    while not opt.done:
+        before, restart = len(opt.modes), opt._restart_pending
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        outcomes = judged(values, ask.duels)
+        opt.tell(outcomes)
+        if restart:
+            trace += "R"
+        elif len(opt.modes) > before:
+            mode = opt.modes[-1][0]
+            trace += mode.upper() if outcomes[0].winner == ask.candidates[0].id else mode
+    # seed 1 exercises every rule: wins and losses of probes and steps, a hand-back after
+    # three losing steps, the cooldown's four region iterations, a restart
+    assert trace[:3] in ("ppp", "ppP", "pPp", "pPP", "Ppp", "PpP", "PPp", "PPP")
+    assert re.search("lll[gG]{4}[pP]", trace) and "R" in trace
+    # three losing steps hand back (the budget may end the cooldown)
+    assert "lll" not in re.sub("lll([gG]{4}|[gG]*$)", "", trace)
+    phases = re.findall(r"[pP]+", trace)
+    cut = [m.end() for m in re.finditer(r"[pP]+", trace) if trace[m.end() : m.end() + 1] == "R"]
+    assert len(phases) >= 8
+    for m in re.finditer(r"[pP]+", trace):
+        assert len(m.group()) == 3 or m.end() in cut or m.end() == len(trace)  # or the budget
+    for m in re.finditer(r"[lL]", trace):  # after a step: a winner's probes, a loser's step
+        nxt = trace[m.end() : m.end() + 1]
+        if m.group() == "L" and nxt:
+            assert nxt in "pPR"
+        elif nxt:
+            assert nxt in "lLgGR"
+    assert "L" in trace and "l" in trace
+
+
+def test_probes_deep_copy_mid_phase_continues_identically() -> None:
+    opt = make_optimizer("hybrid", 3, seed=3, budget=40, confidence=0.0, probes_per_dim=1.0)
+    assert isinstance(opt, Hybrid)
+    values: dict[int, float] = {}
+    while not (opt._probes_left == 2 and opt.evaluations_used > 8):
+        ask = opt.ask()
+        for c in ask.candidates:
+            values[c.id] = utility(c.theta)
+        opt.tell(judged(values, ask.duels))
+    twin = copy.deepcopy(opt)
+    a, b = _drive_by_theta(opt), _drive_by_theta(twin)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert "probe" in opt.modes
+
+
+def test_without_probes_the_option_changes_nothing() -> None:
+    a = drive(make_optimizer("hybrid", 3, seed=6, budget=30, confidence=0.0))
+    b = drive(make_optimizer("hybrid", 3, seed=6, budget=30, confidence=0.0, probes_per_dim=0.0))
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
