@@ -53,6 +53,19 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
             "region's largest side): local steps first, TuRPBO's region after a stall",
             handover_length=1.6,
         ),
+        "hybrid_probe": _preset(
+            "hybrid",
+            "the hybrid stepping locally first, each local phase led by d probes (GIPBOr's random "
+            "local duels, at 0.5-2 lengthscales) that inform its gradient",
+            handover_length=1.6,
+            probes_per_dim=1.0,
+        ),
+        "hybrid_probe0.5": _preset(
+            "hybrid",
+            "hybrid_probe with d/2 probes per local phase",
+            handover_length=1.6,
+            probes_per_dim=0.5,
+        ),
         "prefsqp_radius": _preset(
             "prefsqp",
             "PrefSQP sampling its gradient duels at a radius relative to the lengthscale",
