@@ -220,3 +220,23 @@ def test_an_algorithm_digest_covers_the_optimizer_modules_it_imports() -> None:
         if missing := sorted(seen - set(own)):
             uncovered[algorithm] = missing
     assert uncovered == {}
+
+
+def test_a_why_record_names_both_digests_of_the_old_code() -> None:
+    """When an algorithm's list of files grew, the old commit's digest over today's list
+    differs from the one its runs stored; ``--record`` links both to today's digest, so runs
+    dated by either (their own block, or ``stored_code.json``) read as the same behaviour."""
+    from localpbo_core.experiments.drift import Why, _block_digest
+
+    w = Why("r", "hybrid", "c0ffee", "new-list", "today", 62, 62, 62, 0.0, "old-list")
+    assert [(e["from"], e["to"]) for e in w.records("p")] == [
+        ("new-list", "today"),
+        ("old-list", "today"),
+    ]
+    same = Why("r", "hybrid", "c0ffee", "d", "today", 62, 62, 62, 0.0, "d")
+    assert [e["from"] for e in same.records("p")] == ["d"]
+    block = {"commit": "c0ffee", "dirty": False, "algorithm_digest": "old-list"}
+    assert _block_digest({"code": block}, "c0ffee") == "old-list"
+    assert _block_digest({"code": block}, "beef") is None
+    assert _block_digest({"code": {**block, "dirty": True}}, "c0ffee") is None
+    assert _block_digest({}, "c0ffee") is None

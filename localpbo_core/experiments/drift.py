@@ -146,20 +146,32 @@ class Why:
     machine_identical: int
     code_identical: int
     code_gap: float
+    stored_digest: str | None = None
+    """The ``algorithm_digest`` of the stored run's ``code`` block when that block names
+    ``commit``; it differs from ``old_digest`` when the algorithm's list of files changed
+    since (``old_digest`` is taken over today's list,
+    :func:`~localpbo_core.provenance.algorithm_sources`)."""
 
-    def record(self, path: str) -> dict[str, Any]:
-        """The entry of ``equivalent_code.json`` (module docstring)."""
-        return {
-            "run": path,
-            "algorithm": self.algorithm,
-            "commit": self.commit,
-            "from": self.old_digest,
-            "to": self.today_digest,
-            "candidates": self.candidates,
-            "identical": self.code_identical,
-            "code_gap": self.code_gap,
-            "stored_identical": self.machine_identical,
-        }
+    def records(self, path: str) -> list[dict[str, Any]]:
+        """The entries of ``equivalent_code.json`` (module docstring): one from ``old_digest``
+        and, if it differs, one from ``stored_digest`` (both name ``commit``'s code)."""
+        froms = [self.old_digest]
+        if self.stored_digest is not None and self.stored_digest != self.old_digest:
+            froms.append(self.stored_digest)
+        return [
+            {
+                "run": path,
+                "algorithm": self.algorithm,
+                "commit": self.commit,
+                "from": digest,
+                "to": self.today_digest,
+                "candidates": self.candidates,
+                "identical": self.code_identical,
+                "code_gap": self.code_gap,
+                "stored_identical": self.machine_identical,
+            }
+            for digest in froms
+        ]
 
 
 def why(path: Path, commit: str | None = None) -> Why:
@@ -194,7 +206,17 @@ def why(path: Path, commit: str | None = None) -> Why:
         machine_identical=machine,
         code_identical=code,
         code_gap=gap,
+        stored_digest=_block_digest(stored, commit),
     )
+
+
+def _block_digest(doc: dict[str, Any], commit: str) -> str | None:
+    """The stored run's ``algorithm_digest`` if its ``code`` block names ``commit``."""
+    block = doc.get("code") or {}
+    if block.get("commit") != commit or block.get("dirty"):
+        return None
+    digest = block.get("algorithm_digest")
+    return None if digest is None else str(digest)
 
 
 def _stored_code(doc: dict[str, Any]) -> tuple[str, str]:
@@ -305,7 +327,7 @@ def _main_why(paths: Sequence[str], record: str | None, commit: str | None) -> i
             name = rel.relative_to(ROOT).as_posix()
         except ValueError:
             name = Path(p).as_posix()
-        entries.append(w.record(name))
+        entries += w.records(name)
     if record is not None:
         target = Path(record)
         old = json.loads(target.read_text()) if target.is_file() else []
