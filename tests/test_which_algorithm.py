@@ -364,6 +364,28 @@ def test_decision_time_benchmark_writes_its_record(tmp_path: Path) -> None:
         t["evaluations"][1] - t["evaluations"][0] + 1 for t in record["thirds"]
     )
     assert record["global_asks"] + record["local_asks"] == record["iterations"]
+    assert record["probe_asks"] == 0
+    # a preset with probes: every ask counted once, as a global ask, a probe or a local step
+    probe = tmp_path / "probe" / "hybrid_compute_hartmann6.json"
+    argv = [*argv[:-1], str(probe), "--algorithm", "hybrid_probe"]
+    assert main(argv) == 0
+    (record,) = read_decision_times(probe.parent)
+    assert record["probe_asks"] >= 6  # a phase of d = 6 probes before the first step
+    assert record["global_asks"] + record["local_asks"] + record["probe_asks"] == 12
+
+
+def test_the_local_share_counts_probes() -> None:
+    """The page's decision-time records: local steps (and probes where counted) of all asks."""
+    from localpbo_core.experiments.beyond import _local_share
+
+    rec = {"local_asks": 30, "global_asks": 90}
+    assert _local_share(rec) == "local steps 30 of 120 asks (25 %)"
+    assert _local_share({**rec, "local_asks": 0}) == (
+        "local steps 0 of 90 asks (0 %): TuRPBO's candidates throughout"
+    )
+    assert _local_share({**rec, "probe_asks": 80}) == (
+        "local steps 30 of 200 asks (15 %), probes 80 (40 %)"
+    )
 
 
 @pytest.fixture(scope="module")

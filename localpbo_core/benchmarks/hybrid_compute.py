@@ -109,6 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     per: dict[str, list[np.ndarray]] = {"turpbo": [], "hybrid": []}
     global_s: list[float] = []
     local_s: list[float] = []
+    probe_s: list[float] = []
     t0 = time.perf_counter()
     for seed in seeds:
         for algorithm in ("turpbo", "hybrid"):
@@ -118,6 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if algorithm == "hybrid" and len(modes) == len(secs):  # q = 1: one per ask
                 global_s += [s for s, m in zip(secs, modes, strict=True) if m == "global"]
                 local_s += [s for s, m in zip(secs, modes, strict=True) if m == "local"]
+                probe_s += [s for s, m in zip(secs, modes, strict=True) if m == "probe"]
     n_iter = min(min(len(s) for s in v) for v in per.values())
     wall = time.perf_counter() - t0
     print(
@@ -139,6 +141,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hybrid global asks: {len(global_s)}, mean {np.mean(global_s):.4f} s")
     if local_s:
         print(f"hybrid local asks:  {len(local_s)}, mean {np.mean(local_s):.4f} s")
+    if probe_s:
+        print(f"hybrid probe asks:  {len(probe_s)}, mean {np.mean(probe_s):.4f} s")
     if args.out is not None:
         shown = ["python", "-m", "localpbo_core.benchmarks.hybrid_compute"]
         doc = {
@@ -158,6 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "thirds": thirds,
             "local_asks": len(local_s),
             "global_asks": len(global_s),
+            "probe_asks": len(probe_s),
         }
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -448,12 +448,15 @@ def decision_time_verdict(label: str, records: Sequence[dict[str, Any]]) -> str:
 
 
 def _local_share(record: dict[str, Any]) -> str:
-    """How many of a record's hybrid asks were local steps; with none, the hybrid asked
-    TuRPBO's candidates throughout (the same seeds give the same runs)."""
-    local = int(record["local_asks"])
-    asks = local + int(record["global_asks"])
+    """How many of a record's hybrid asks were local steps (and probes, for records that
+    count them); with neither, the hybrid asked TuRPBO's candidates throughout (the same seeds
+    give the same runs)."""
+    local, probes = int(record["local_asks"]), int(record.get("probe_asks", 0))
+    asks = local + probes + int(record["global_asks"])
     share = f"local steps {local} of {asks} asks ({100.0 * local / max(asks, 1):.0f} %)"
-    return share if local else f"{share}: TuRPBO's candidates throughout"
+    if probes:
+        share += f", probes {probes} ({100.0 * probes / asks:.0f} %)"
+    return share if local or probes else f"{share}: TuRPBO's candidates throughout"
 
 
 def runnable(label: str) -> bool:
