@@ -43,17 +43,19 @@ def _drive_by_theta(opt: PreferenceOptimizer) -> list[np.ndarray]:
     return [c.theta for c in opt.history.candidates]
 
 
-def _local_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, Surrogate, torch.Tensor]]:
-    """Drive ``opt`` noise-free on ``utility``; yield every ask of a local step, before it is
-    answered, with the center, the surrogate and the step's origin (the center, or with probes
-    the phase's origin) as a tensor (duels the caller answers are not answered again)."""
+def _mode_asks(
+    opt: Hybrid, mode: str = "local"
+) -> Iterator[tuple[Ask, Candidate, Surrogate, torch.Tensor]]:
+    """Drive ``opt`` noise-free on ``utility``; yield every ask of ``mode`` (a local step or a
+    probe), before it is answered, with the center, the surrogate and the phase's origin (the
+    center without probes) as a tensor (duels the caller answers are not answered again)."""
     values: dict[int, float] = {}
     while not opt.done:
         before = len(opt.modes)
         ask = opt.ask()
         for c in ask.candidates:
             values[c.id] = utility(c.theta)
-        if len(opt.modes) > before and opt.modes[-1] == "local":
+        if len(opt.modes) > before and opt.modes[-1] == mode:
             center, sur = opt.center, opt.surrogate
             assert center is not None and sur is not None
             origin = center.theta if opt.origin is None else opt.origin
@@ -113,7 +115,7 @@ def test_local_step_is_the_kernel_metric_gradient_step(probes_per_dim: float) ->
     )
     assert isinstance(opt, Hybrid)
     checked = moved = 0
-    for ask, center, sur, x in _local_asks(opt):
+    for ask, center, sur, x in _mode_asks(opt):
         assert len(ask.candidates) == 1
         g = sur.mean_gradient(x).detach().numpy()
         ls = sur.lengthscale.detach().numpy()
@@ -133,7 +135,7 @@ def test_newton_direction_option() -> None:
     )
     assert isinstance(opt, Hybrid)
     checked = 0
-    for ask, center, sur, x in _local_asks(opt):
+    for ask, center, sur, x in _mode_asks(opt):
         g = sur.mean_gradient(x).detach().numpy()
         H = sur.mean_hessian(x).detach().numpy()
         u = -np.linalg.solve(negative_definite_modification(H), g)
@@ -228,7 +230,7 @@ def test_cant_tell_answers_are_no_win_and_are_modelled() -> None:
     )
     assert isinstance(opt, Hybrid)
     local_ties = 0
-    for ask, center, _, _ in _local_asks(opt):
+    for ask, center, _, _ in _mode_asks(opt):
         # a local step answered "can't tell": no win, the center stays
         opt.tell([Indifferent(d.first, d.second) for d in ask.duels])
         assert opt.center == center
@@ -311,21 +313,6 @@ def test_resume_replays_recorded_answers_into_the_same_run(probes_per_dim: float
     assert replayed + rest == full
 
 
-def _probe_asks(opt: Hybrid) -> Iterator[tuple[Ask, Candidate, np.ndarray]]:
-    """Drive ``opt`` noise-free on ``utility``; yield every probe ask before it is answered,
-    with the center and the phase's origin it was asked at."""
-    values: dict[int, float] = {}
-    while not opt.done:
-        before = len(opt.modes)
-        ask = opt.ask()
-        for c in ask.candidates:
-            values[c.id] = utility(c.theta)
-        if len(opt.modes) > before and opt.modes[-1] == "probe":
-            assert opt.center is not None and opt.origin is not None
-            yield ask, opt.center, opt.origin
-        opt.tell(judged(values, ask.duels))
-
-
 @pytest.mark.parametrize("metric", ["kernel", "euclidean"])
 def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str) -> None:
     """A probe: one candidate at distance in [0.05, 0.2] from the phase's origin (GIPBOr's
@@ -340,10 +327,10 @@ def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str) -> No
     fits: dict[int, object] = {}  # mode index of a probe -> the model after its ask
     checked = 0
     away = 0
-    for ask, center, origin in _probe_asks(opt):
+    for ask, center, _, x in _mode_asks(opt, "probe"):
         fits[len(opt.modes) - 1] = opt._refitter.surrogate
-        assert len(ask.candidates) == 1
-        theta = ask.candidates[0].theta
+        assert len(ask.candidates) == 1 and opt.origin is not None
+        theta, origin = ask.candidates[0].theta, x.numpy()
         assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
         if np.all((theta > 0) & (theta < 1)):
             if metric == "euclidean":
