@@ -190,10 +190,26 @@ def test_improves_on_smooth_problem_under_noise() -> None:
     assert used_local >= 1
 
 
-def test_deep_copy_mid_local_phase_continues_identically() -> None:
-    opt = make_optimizer("hybrid", 3, seed=3, budget=30, confidence=0.0)
+@pytest.mark.parametrize("probes_per_dim", [0.0, 1.0])
+def test_deep_copy_mid_local_phase_continues_identically(probes_per_dim: float) -> None:
+    """A copy taken mid local phase (with probes: mid probes) continues as the original."""
+    opt = make_optimizer(
+        "hybrid",
+        3,
+        seed=3,
+        budget=30 + 10 * int(probes_per_dim),
+        confidence=0.0,
+        probes_per_dim=probes_per_dim,
+    )
+    assert isinstance(opt, Hybrid)
+
+    def mid_phase() -> bool:
+        if probes_per_dim:
+            return opt._probes_left == 2
+        return opt.mode == "local"
+
     values: dict[int, float] = {}
-    while not (isinstance(opt, Hybrid) and opt.mode == "local" and opt.evaluations_used > 8):
+    while not (mid_phase() and opt.evaluations_used > 8):
         ask = opt.ask()
         for c in ask.candidates:
             values[c.id] = utility(c.theta)
@@ -201,6 +217,7 @@ def test_deep_copy_mid_local_phase_continues_identically() -> None:
     twin = copy.deepcopy(opt)
     a, b = _drive_by_theta(opt), _drive_by_theta(twin)
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert ("probe" in opt.modes) == bool(probes_per_dim)
 
 
 def test_a_refused_tell_leaves_a_local_step_untouched() -> None:
@@ -388,21 +405,6 @@ def test_a_phase_is_probes_then_steps() -> None:
         elif nxt:
             assert nxt in "lLgGR"
     assert "L" in trace and "l" in trace
-
-
-def test_probes_deep_copy_mid_phase_continues_identically() -> None:
-    opt = make_optimizer("hybrid", 3, seed=3, budget=40, confidence=0.0, probes_per_dim=1.0)
-    assert isinstance(opt, Hybrid)
-    values: dict[int, float] = {}
-    while not (opt._probes_left == 2 and opt.evaluations_used > 8):
-        ask = opt.ask()
-        for c in ask.candidates:
-            values[c.id] = utility(c.theta)
-        opt.tell(judged(values, ask.duels))
-    twin = copy.deepcopy(opt)
-    a, b = _drive_by_theta(opt), _drive_by_theta(twin)
-    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-    assert "probe" in opt.modes
 
 
 def test_without_probes_the_option_changes_nothing() -> None:
