@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from localpbo_core.loop import run_session
+from localpbo_core.optimizers.hybrid import MODES
 from localpbo_core.session import Session
 from localpbo_core.settings import RunSettings
 from localpbo_core.threads import use_fast_threads
@@ -107,9 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     options = dict(args.option)
     seeds = _seeds(args.seeds)
     per: dict[str, list[np.ndarray]] = {"turpbo": [], "hybrid": []}
-    global_s: list[float] = []
-    local_s: list[float] = []
-    probe_s: list[float] = []
+    by_mode: dict[str, list[float]] = {m: [] for m in MODES}  # seconds of the hybrid's asks
     t0 = time.perf_counter()
     for seed in seeds:
         for algorithm in ("turpbo", "hybrid"):
@@ -117,9 +116,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             secs, modes = _run(args.problem, name, seed, opts, args.budget, args.problem_options)
             per[algorithm].append(secs)
             if algorithm == "hybrid" and len(modes) == len(secs):  # q = 1: one per ask
-                global_s += [s for s, m in zip(secs, modes, strict=True) if m == "global"]
-                local_s += [s for s, m in zip(secs, modes, strict=True) if m == "local"]
-                probe_s += [s for s, m in zip(secs, modes, strict=True) if m == "probe"]
+                for s, m in zip(secs, modes, strict=True):
+                    by_mode[m].append(float(s))
     n_iter = min(min(len(s) for s in v) for v in per.values())
     wall = time.perf_counter() - t0
     print(
@@ -137,12 +135,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     tr_all = float(np.mean([s[:n_iter].sum() for s in per["turpbo"]]))
     hy_all = float(np.mean([s[:n_iter].sum() for s in per["hybrid"]]))
     print(f"{'whole run (s per run)':>24} {tr_all:10.2f} {hy_all:10.2f} {hy_all / tr_all:7.2f}")
-    if global_s:
-        print(f"hybrid global asks: {len(global_s)}, mean {np.mean(global_s):.4f} s")
-    if local_s:
-        print(f"hybrid local asks:  {len(local_s)}, mean {np.mean(local_s):.4f} s")
-    if probe_s:
-        print(f"hybrid probe asks:  {len(probe_s)}, mean {np.mean(probe_s):.4f} s")
+    for mode in ("global", "local", "probe"):
+        if by_mode[mode]:
+            label = f"hybrid {mode} asks:"
+            print(f"{label:<20}{len(by_mode[mode])}, mean {np.mean(by_mode[mode]):.4f} s")
     if args.out is not None:
         shown = ["python", "-m", "localpbo_core.benchmarks.hybrid_compute"]
         doc = {
@@ -160,9 +156,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             "hybrid_seconds_per_run": hy_all,
             "ratio": hy_all / tr_all,
             "thirds": thirds,
-            "local_asks": len(local_s),
-            "global_asks": len(global_s),
-            "probe_asks": len(probe_s),
+            "local_asks": len(by_mode["local"]),
+            "global_asks": len(by_mode["global"]),
+            "probe_asks": len(by_mode["probe"]),
         }
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
