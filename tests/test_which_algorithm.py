@@ -26,6 +26,7 @@ from localpbo_core.experiments.beyond import (
     goal_verdicts,
     main_groups,
     pair_reach,
+    read_decision_times,
     standings,
     which_algorithm_section,
 )
@@ -517,6 +518,14 @@ def test_the_algorithms_page_states_the_probe_presets_as_stored(
     assert "significantly above TuRPBO on 2 problems (goal: 3) and below on none" in text
     assert "best or tied on 7 (`d`) and 10 (`d/2`) of 17" in text
     assert "Either paired with GIPBOr reaches all 18 in the page's pair table" in text
+    ratios = {(r["algorithm"], r["problem"]): r["ratio"] for r in read_decision_times()}
+    shown = (
+        f"`hybrid_probe`'s decision time is {ratios['hybrid_probe', 'hartmann6']:.2f}× "
+        f"TuRPBO's on Hartmann 6 and {ratios['hybrid_probe', 'levy32']:.2f}× on Levy 32, "
+        f"`hybrid_probe0.5`'s {ratios['hybrid_probe0.5', 'hartmann6']:.2f}× and "
+        f"{ratios['hybrid_probe0.5', 'levy32']:.2f}×"
+    )
+    assert shown in text
     s = _by_name(stored_table)
     for label, cumulative in (("hybrid_probe", 7), ("hybrid_probe0.5", 10)):
         p = s[label]
