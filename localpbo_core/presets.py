@@ -66,6 +66,13 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
             handover_length=1.6,
             probes_per_dim=0.5,
         ),
+        "hybrid_probe0.5_s0.5": _preset(
+            "hybrid",
+            "hybrid_probe0.5 with its probes at half the radius (0.25-1 lengthscales)",
+            handover_length=1.6,
+            probes_per_dim=0.5,
+            probe_scale=0.5,
+        ),
         "prefsqp_radius": _preset(
             "prefsqp",
             "PrefSQP sampling its gradient duels at a radius relative to the lengthscale",

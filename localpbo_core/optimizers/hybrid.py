@@ -47,7 +47,9 @@ C.3: a uniform direction ``u``, a radius ``r``, projected onto the cube). With
     the phase, so ``sqrt((x - x_o)^T Lambda (x - x_o)) = r`` before the projection),
 
 which is GIPBOr's region ``[0.05, 0.2]`` where ``l = 0.1`` and scales with the model elsewhere;
-``"euclidean"`` takes GIPBOr's region ``[0.05, 0.2]`` whatever ``l``. Each probe is dueled
+``"euclidean"`` takes GIPBOr's region ``[0.05, 0.2]`` whatever ``l``. ``probe_scale`` ``s``
+multiplies both intervals (``[0.5 s, 2 s]``, ``[0.05 s, 0.2 s]``): nearer probes cost less value
+(the cumulative metric), and their duels are closer calls under the noise. Each probe is dueled
 against the center, and then the phase steps from ``x_o``, the gradient read at ``x_o``: a fit
 that has seen duels around ``x_o`` in every direction (GIPBOr's phase, ``M = d`` with
 ``probes_per_dim = 1``) rather than only the trust region's candidates. A probe asks no fit;
@@ -122,6 +124,7 @@ class Hybrid(TuRPBO):
             docstring).
         probe_metric: ``"kernel"`` (default) or ``"euclidean"``: where the probes' radii are
             measured (module docstring).
+        probe_scale: ``s``, a factor on the probes' radii (default 1; module docstring).
     """
 
     name = "hybrid"
@@ -140,6 +143,7 @@ class Hybrid(TuRPBO):
         handover_length: float = 0.0,
         probes_per_dim: float = 0.0,
         probe_metric: str = "kernel",
+        probe_scale: float = 1.0,
         **turpbo: Unpack[TuRPBOOptions],
     ) -> None:
         super().__init__(dim, seed, budget, **turpbo)
@@ -154,6 +158,7 @@ class Hybrid(TuRPBO):
         self.handover_length = check_float("handover_length", handover_length, minimum=0.0)
         self.probes_per_dim = check_float("probes_per_dim", probes_per_dim, minimum=0.0)
         self.probe_metric = check_choice("probe_metric", probe_metric, PROBE_METRICS)
+        self.probe_scale = check_float("probe_scale", probe_scale, minimum=0.0, minimum_open=True)
         #: Probes per local phase, ``ceil(probes_per_dim * d)``.
         self.probes = int(np.ceil(self.probes_per_dim * self.dim))
         self._probes_left = 0
@@ -252,10 +257,12 @@ class Hybrid(TuRPBO):
         assert self._origin is not None
         self._asked_probe = True
         self.modes.append("probe")
+        s = self.probe_scale
         if self.probe_metric == "euclidean":
-            return random_local_query(self._origin, rng, DEFAULT_BOUNDS)[None, :]
+            bounds = (DEFAULT_BOUNDS[0] * s, DEFAULT_BOUNDS[1] * s)
+            return random_local_query(self._origin, rng, bounds)[None, :]
         u = sphere_directions(1, self.dim, rng)[0]
-        r = rng.uniform(*KERNEL_PROBE_BOUNDS)
+        r = rng.uniform(KERNEL_PROBE_BOUNDS[0] * s, KERNEL_PROBE_BOUNDS[1] * s)
         return np.clip(self._origin + r * self._origin_scale * u, 0.0, 1.0)[None, :]
 
     # ------------------------------------------------------------------ tell

@@ -267,6 +267,7 @@ def test_validation_names_the_field() -> None:
         ({"cooldown": -1}, "cooldown"),
         ({"probes_per_dim": -0.5}, "probes_per_dim"),
         ({"probe_metric": "chebyshev"}, "probe_metric"),
+        ({"probe_scale": 0.0}, "probe_scale"),
         ({"acquisition": "ucb"}, "acquisition"),
     ):
         with pytest.raises(ValueError, match=field):
@@ -330,20 +331,30 @@ def test_resume_replays_recorded_answers_into_the_same_run(probes_per_dim: float
     assert replayed + rest == full
 
 
-@pytest.mark.parametrize("metric", ["kernel", "euclidean"])
-def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str) -> None:
+@pytest.mark.parametrize(
+    ("metric", "scale"), [("kernel", 1.0), ("euclidean", 1.0), ("kernel", 0.5), ("euclidean", 0.5)]
+)
+def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str, scale: float) -> None:
     """A probe: one candidate at distance in [0.05, 0.2] from the phase's origin (GIPBOr's
     region; ``kernel``: at distance in [0.5, 2] in the metric of the lengthscales of the fit
-    that started the phase), before projection onto the cube, dueled against the center, and
-    no refit. The origin is the center at the phase's start; a winning probe moves the center
-    only."""
+    that started the phase), both times ``probe_scale``, before projection onto the cube,
+    dueled against the center, and no refit. The origin is the center at the phase's start; a
+    winning probe moves the center only."""
     opt = make_optimizer(
-        "hybrid", 5, seed=4, budget=80, confidence=0.0, probes_per_dim=1.0, probe_metric=metric
+        "hybrid",
+        5,
+        seed=4,
+        budget=80,
+        confidence=0.0,
+        probes_per_dim=1.0,
+        probe_metric=metric,
+        probe_scale=scale,
     )
     assert isinstance(opt, Hybrid) and opt.probes == 5
     fits: dict[int, object] = {}  # mode index of a probe -> the model after its ask
     checked = 0
     away = 0
+    radii: list[float] = []
     for ask, center, _, x in _mode_asks(opt, "probe"):
         fits[len(opt.modes) - 1] = opt._refitter.surrogate
         assert len(ask.candidates) == 1 and opt.origin is not None
@@ -351,13 +362,16 @@ def test_probes_are_gipbors_queries_dueled_against_the_center(metric: str) -> No
         assert (ask.duels[0].first, ask.duels[0].second) == (ask.candidates[0].id, center.id)
         if np.all((theta > 0) & (theta < 1)):
             if metric == "euclidean":
-                assert 0.05 <= np.linalg.norm(theta - origin) <= 0.2
+                radii.append(float(np.linalg.norm(theta - origin)) / 0.1)
             else:
-                scale = opt._origin_scale
-                assert 0.5 <= np.linalg.norm((theta - origin) / scale) <= 2.0
+                radii.append(float(np.linalg.norm((theta - origin) / opt._origin_scale)))
         checked += 1
         away += not np.array_equal(origin, center.theta)
     assert checked >= 15 and away > 0
+    # radii in [0.5 s, 2 s] (euclidean: in units of 0.1), spread over most of it
+    assert len(radii) >= 5
+    assert 0.5 * scale - 1e-12 <= min(radii) < 0.9 * scale < 1.6 * scale < max(radii)
+    assert max(radii) <= 2.0 * scale + 1e-12
     # consecutive probes of a phase share the fit of the ask before them: no refit
     following = [i for i in fits if i - 1 in fits]
     assert len(following) >= 10
