@@ -9,8 +9,8 @@ Every path (``localpbo bench``, ``localpbo run``, the ROS nodes, ``replay --veri
   "same initial data"; policy search uses 5 d);
 * ``DEFAULT_NOISE_FRACTION = 0.1``: oracle noise std as a fraction of the problem's
   approximate value range (paper Sec. 6 and App. D.1, "Noise model");
-* ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (the hybrid, the choice of the stored runs) on
-  ``DEFAULT_PROBLEM`` (Swimmer);
+* ``localpbo run`` tunes ``DEFAULT_ALGORITHM`` (``hybrid_probe0.5_s0.5``, a preset of the hybrid:
+  the choice of the stored runs, docs/algorithms.md) on ``DEFAULT_PROBLEM`` (Swimmer);
 * the budget ``initial design + 10 d`` evaluations (:func:`default_budget`; 62 on
   Hartmann 6, paper App. D.1 "Evaluation and comparison budgets");
 * ``tie_threshold`` 0 (the paper's likelihood, no "can't tell" answers); a run whose judge
@@ -54,7 +54,7 @@ DEFAULT_TIE_THRESHOLD = 0.25
 """The indifference threshold ``eps`` to use when a judge may answer "can't tell" (latent
 units; :mod:`localpbo_core.surrogate.ordinal`). Runs default to 0, the paper's model."""
 
-DEFAULT_ALGORITHM = "hybrid"
+DEFAULT_ALGORITHM = "hybrid_probe0.5_s0.5"
 """The algorithm (or preset, :mod:`localpbo_core.presets`) of ``localpbo run`` and of the
 optimizer node when none is chosen: the one the stored runs pick by the rule of
 :mod:`localpbo_core.experiments.beyond` (among the algorithms run on all 18 main problems of

@@ -400,11 +400,12 @@ def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) ->
     a, b = (p.as_posix() for p in inputs)
     assert completion_commands(stored, ["beyond_hybrid_policy", "policy_warm_start"], inputs) == [
         f"localpbo sweep beyond_hybrid_policy --out {a}/beyond_hybrid_policy --problems hopper "
-        f"--algorithms hybrid_c0.5,hybrid_local,hybrid_probe,hybrid_probe0.5,turpbo --seeds 0-9 "
+        "--algorithms hybrid_c0.5,hybrid_local,hybrid_probe,hybrid_probe0.5,"
+        "hybrid_probe0.5_s0.5,turpbo --seeds 0-9 "
         f"--reuse {b}/policy_warm_start",
         f"localpbo sweep beyond_hybrid_policy --out {a}/beyond_hybrid_policy --problems walker2d "
-        "--algorithms hybrid,hybrid_c0.5,hybrid_local,hybrid_probe,hybrid_probe0.5,turpbo "
-        "--seeds 0-9 "
+        "--algorithms hybrid,hybrid_c0.5,hybrid_local,hybrid_probe,hybrid_probe0.5,"
+        "hybrid_probe0.5_s0.5,turpbo --seeds 0-9 "
         f"--reuse {b}/policy_warm_start",
         f"localpbo sweep policy_warm_start --out {b}/policy_warm_start --problems walker2d "
         "--algorithms gipbor,glisp,prefsqp,qeubo,sobol --seeds 0-9",
