@@ -8,6 +8,7 @@ import json
 from localpbo_ros.commands import add_subcommands, main, run_settings
 from localpbo_ros.optimizer_node import PARAMS, config_from_settings
 
+from localpbo_core.presets import expand
 from localpbo_core.settings import DEFAULT_ALGORITHM
 
 
@@ -18,18 +19,22 @@ def parse(argv):
 
 
 def test_default_run_is_the_default_algorithm_on_swimmer() -> None:
+    """``localpbo run`` without flags: the default algorithm (a preset: its algorithm and its
+    options, as ``--algorithm`` names it) on Swimmer, 162 evaluations."""
     args = parse(["run"])
     settings = {p.name: p.default for p in PARAMS}
     settings.update(run_settings(args))
     settings["algorithm_options"] = {}
     settings["task_options"] = {}
     config = config_from_settings(settings)
+    algorithm, options = expand(DEFAULT_ALGORITHM, {})
     assert (config.algorithm, config.task, config.budget, config.dim) == (
-        DEFAULT_ALGORITHM,
+        algorithm,
         "swimmer",
         162,
         16,
     )
+    assert {k: config.options["optimizer"][k] for k in options} == options
     assert args.func.__name__ == "cmd_run"
     assert parse(["replay", "x.mcap", "--verify"]).func.__name__ == "cmd_replay"
     assert parse(["bag-info", "x.mcap"]).func.__name__ == "cmd_bag_info"
