@@ -159,6 +159,8 @@ class Hybrid(TuRPBO):
         self.probes_per_dim = check_float("probes_per_dim", probes_per_dim, minimum=0.0)
         self.probe_metric = check_choice("probe_metric", probe_metric, PROBE_METRICS)
         self.probe_scale = check_float("probe_scale", probe_scale, minimum=0.0, minimum_open=True)
+        low, high = DEFAULT_BOUNDS if self.probe_metric == "euclidean" else KERNEL_PROBE_BOUNDS
+        self._probe_bounds = (low * self.probe_scale, high * self.probe_scale)
         #: Probes per local phase, ``ceil(probes_per_dim * d)``.
         self.probes = int(np.ceil(self.probes_per_dim * self.dim))
         self._probes_left = 0
@@ -257,12 +259,10 @@ class Hybrid(TuRPBO):
         assert self._origin is not None
         self._asked_probe = True
         self.modes.append("probe")
-        s = self.probe_scale
         if self.probe_metric == "euclidean":
-            bounds = (DEFAULT_BOUNDS[0] * s, DEFAULT_BOUNDS[1] * s)
-            return random_local_query(self._origin, rng, bounds)[None, :]
+            return random_local_query(self._origin, rng, self._probe_bounds)[None, :]
         u = sphere_directions(1, self.dim, rng)[0]
-        r = rng.uniform(KERNEL_PROBE_BOUNDS[0] * s, KERNEL_PROBE_BOUNDS[1] * s)
+        r = rng.uniform(*self._probe_bounds)
         return np.clip(self._origin + r * self._origin_scale * u, 0.0, 1.0)[None, :]
 
     # ------------------------------------------------------------------ tell
