@@ -32,6 +32,13 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
+* **Two sweeps, one folder**: a sweep claims each run before computing it
+  (:mod:`localpbo_core.run_claims`: a lock the kernel drops when the sweep ends, however it
+  ends) and passes over runs another live sweep holds, listing them as under way there; a
+  run another sweep stored meanwhile is skipped. So a second copy of a command never
+  computes a run twice, and the same ``--in-process`` command started in two shells splits
+  the runs between them (each claims the next free run just before computing it; a Ray
+  sweep claims the runs it submits). ``--dry-run`` shows claimed runs as "under way".
 * **Re-run** (``--rerun-changed``): a stored run that today's code is not known to make again
   (its algorithm's sources changed since it was stored and no recorded re-run showed the same
   trace, or no code version is known: "changed since" and "none stored" of
@@ -79,6 +86,7 @@ from localpbo_core.provenance import (
     replaced_block,
     run_code_state,
 )
+from localpbo_core.run_claims import Claim, Holder, holder, try_claim
 from localpbo_core.settings import SettingError
 
 RUN_SUFFIX = ".json.gz"
@@ -89,8 +97,10 @@ MAX_RETRIES = 3
 @dataclass
 class SweepResult:
     """What a sweep did: run ids finished now (``rerun``: those of them that replaced a run
-    stored by older code), skipped as already stored, failed, and left
-    to run (beyond ``max_runs``, or unfinished when the sweep was interrupted)."""
+    stored by older code), skipped as already stored, failed, left to run (beyond
+    ``max_runs``, or unfinished when the sweep was interrupted), and passed over because
+    another sweep holds their claim (``elsewhere``: run id to who holds it,
+    :mod:`localpbo_core.run_claims`)."""
 
     finished: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
@@ -99,6 +109,7 @@ class SweepResult:
     interrupted: bool = False
     reused: list[str] = field(default_factory=list)
     rerun: list[str] = field(default_factory=list)
+    elsewhere: dict[str, str] = field(default_factory=dict)
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -389,15 +400,43 @@ def sweep(
             copies.append((plan, source))
         else:
             todo.append(plan)
-    if max_runs is not None:
-        result.pending = [p.run_id for p in todo[max_runs:]]
-        todo = todo[:max_runs]
     out.mkdir(parents=True, exist_ok=True)
     (out / "spec.json").write_text(json.dumps(_spec_document(spec), indent=1) + "\n")
     for plan, source in copies:
         write_run(run_path(out, plan), reused_document(source, plan))
         result.reused.append(plan.run_id)
-    bar = tqdm(total=len(todo), disable=not progress, unit="run", dynamic_ncols=True)
+    limit = len(todo) if max_runs is None else max_runs
+    skipped_before = len(result.skipped)
+    bar = tqdm(total=min(limit, len(todo)), disable=not progress, unit="run", dynamic_ncols=True)
+    held: dict[str, Claim] = {}
+    started: list[PlannedRun] = []
+
+    def passed_over() -> None:
+        passed = len(result.elsewhere) + len(result.skipped) - skipped_before
+        bar.total = min(limit, len(todo) - passed)
+        bar.refresh()
+
+    def claim(plan: PlannedRun) -> bool:
+        """Claim ``plan`` for this sweep; False (and noted) if another sweep holds it or
+        stored it meanwhile."""
+        got = try_claim(out, plan.run_id)
+        if got is None:
+            result.elsewhere[plan.run_id] = (holder(out, plan.run_id) or Holder()).describe()
+            passed_over()
+            return False
+        if stored_state(out, plan, tables) == "finished":  # another sweep stored it meanwhile
+            got.release()
+            result.skipped.append(plan.run_id)
+            passed_over()
+            return False
+        held[plan.run_id] = got
+        started.append(plan)
+        return True
+
+    def release(plan: PlannedRun) -> None:
+        got = held.pop(plan.run_id, None)
+        if got is not None:
+            got.release()
 
     def store(plan: PlannedRun, doc: dict[str, Any]) -> None:
         path = run_path(out, plan)
@@ -405,6 +444,7 @@ def sweep(
             old = read_run(path)
             doc = {**doc, "replaced": replaced_block(old, doc, tables.known_code(path, old))}
         write_run(path, doc)
+        release(plan)
         result.finished.append(plan.run_id)
         if plan.run_id in stale:
             result.rerun.append(plan.run_id)
@@ -414,6 +454,7 @@ def sweep(
             on_stored(plan)
 
     def fail(plan: PlannedRun, error: str) -> None:
+        release(plan)
         result.failed[plan.run_id] = error
         bar.update(1)
 
@@ -421,19 +462,31 @@ def sweep(
         if in_process:
             with _sigterm_interrupts(stop_on_sigterm):
                 for plan in todo:
-                    try:
-                        doc = execute_run(plan)
-                    except Exception as exc:  # a bug in one run must not stop the sweep
-                        fail(plan, f"{type(exc).__name__}: {exc}")
-                        continue
-                    store(plan, doc)
-        elif todo:
-            _run_on_ray(todo, address, workers, store, fail, stop_on_sigterm)
+                    if len(started) >= limit:
+                        result.pending.append(plan.run_id)
+                    elif claim(plan):
+                        try:
+                            doc = execute_run(plan)
+                        except Exception as exc:  # a bug in one run must not stop the sweep
+                            fail(plan, f"{type(exc).__name__}: {exc}")
+                            continue
+                        store(plan, doc)
+        else:
+            for plan in todo:
+                if len(started) >= limit:
+                    result.pending.append(plan.run_id)
+                else:
+                    claim(plan)
+            if started:
+                _run_on_ray(list(started), address, workers, store, fail, stop_on_sigterm)
     except KeyboardInterrupt:
         result.interrupted = True
-        done = set(result.finished) | set(result.failed)
-        result.pending = [p.run_id for p in todo if p.run_id not in done] + result.pending
+        settled = set(result.finished) | set(result.failed) | set(result.skipped)
+        settled |= set(result.elsewhere) | set(result.pending)
+        result.pending += [p.run_id for p in todo if p.run_id not in settled]
     finally:
+        for got in held.values():
+            got.release()
         bar.close()
     return result
 
@@ -589,10 +642,11 @@ def format_dry_run(
     reuse: Sequence[Path] = (),
     rerun_changed: bool = False,
 ) -> str:
-    """One line per run: its id, state (finished / reuse / will run / will rerun / left for
-    later) and budget."""
+    """One line per run: its id, state (finished / reuse / will run / will rerun / under way
+    in another sweep / left for later) and budget."""
     lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
-    counts = {"finished": 0, "reuse": 0, "will run": 0, "will rerun": 0, "later": 0}
+    counts = {"finished": 0, "reuse": 0, "will run": 0, "will rerun": 0, "under way": 0}
+    counts["later"] = 0
     if not reuse:
         del counts["reuse"]
     if not rerun_changed:
@@ -606,6 +660,8 @@ def format_dry_run(
             state = "finished"
         elif stored == "missing" and index and index.find(plan) is not None:
             state = "reuse"
+        elif holder(out, plan.run_id) is not None:
+            state = "under way"
         elif max_runs is None or started < max_runs:
             state, started = "will rerun" if stored == "stale" else "will run", started + 1
         else:
@@ -613,6 +669,8 @@ def format_dry_run(
         counts[state] += 1
         budget = "default" if plan.settings.budget is None else str(plan.settings.budget)
         lines.append(f"{plan.run_id:<48} {state:<10} {budget:>7} {plan.settings.initial_design:>5}")
+    if not counts["under way"]:
+        del counts["under way"]
     lines.append(", ".join(f"{n} {k}" for k, n in counts.items()) + f" ({len(plans)} runs)")
     return "\n".join(lines)
 
@@ -658,13 +716,16 @@ def main_sweep(args: Any) -> int:
     )
     reused = f"{len(result.reused)} reused, " if reuse else ""
     rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""
+    elsewhere = f", {len(result.elsewhere)} under way in another sweep" if result.elsewhere else ""
     print(
         f"{spec.name}: {len(result.finished)} runs finished{rerun}, {reused}{len(result.skipped)} "
-        f"already stored, {len(result.failed)} failed, {len(result.pending)} left "
+        f"already stored, {len(result.failed)} failed, {len(result.pending)} left{elsewhere} "
         f"({time.perf_counter() - start:.1f} s); results in {out / 'runs'}"
     )
     for run_id, error in sorted(result.failed.items()):
         print(f"FAILED {run_id}: {error}")
+    for run_id, who in sorted(result.elsewhere.items()):
+        print(f"UNDER WAY {run_id}: claimed by {who}; not run here")
     if result.interrupted:
         print("interrupted: the same command continues with the runs left", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -141,6 +141,18 @@ def test_ray_sweep_equals_in_process(local_ray, spec, reference, tmp_path) -> No
     assert len(doc["records"]) == 8 and len(doc["candidates"]) == 8
 
 
+def test_ray_sweep_passes_over_runs_another_sweep_holds(local_ray, spec, tmp_path) -> None:
+    from localpbo_core.run_claims import try_claim
+
+    plans = spec.runs()
+    held = try_claim(tmp_path, plans[1].run_id)
+    result = sweep(spec, tmp_path, progress=False)
+    assert [p.name for p in (tmp_path / ".claims").iterdir()] == [f"{plans[1].run_id}.claim"]
+    held.release()
+    assert list(result.elsewhere) == [plans[1].run_id] and len(result.finished) == 3
+    assert not run_path(tmp_path, plans[1]).exists()
+
+
 def test_resume_repeats_no_finished_run(local_ray, spec, reference, tmp_path) -> None:
     first = sweep(spec, tmp_path, max_runs=2, progress=False)
     assert len(first.finished) == 2 and len(first.pending) == 2

@@ -1,0 +1,195 @@
+"""Run claims: two sweeps on one folder never compute the same run, and a claim dies with
+its process (SIGKILL included)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from localpbo_core.cli import main
+from localpbo_core.experiments import load_spec
+from localpbo_core.run_claims import claim_path, holder, try_claim
+from localpbo_core.sweep import format_dry_run, read_run, run_path, sweep
+
+
+def test_a_claim_is_exclusive_until_released(tmp_path) -> None:
+    first = try_claim(tmp_path, "r1")
+    assert first is not None and first.held
+    assert try_claim(tmp_path, "r1") is None  # another open file: refused, also in-process
+    assert try_claim(tmp_path, "r2") is not None  # other runs are free
+    who = holder(tmp_path, "r1")
+    assert who is not None and who.pid == os.getpid() and who.host == socket.gethostname()
+    assert f"pid {os.getpid()} on host {socket.gethostname()} since " in who.describe()
+    first.release()
+    assert not first.held and not claim_path(tmp_path, "r1").exists()
+    assert holder(tmp_path, "r1") is None
+    again = try_claim(tmp_path, "r1")
+    assert again is not None
+    again.release()
+    again.release()  # twice is harmless
+
+
+def test_a_left_claim_file_holds_nothing_and_unreadable_holders_are_anonymous(tmp_path) -> None:
+    path = claim_path(tmp_path, "r1")
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"pid": 1, "host": "elsewhere"}))  # a sweep that ended
+    assert holder(tmp_path, "r1") is None
+    with try_claim(tmp_path, "r1") as taken:
+        assert taken is not None
+        assert json.loads(path.read_text())["pid"] == os.getpid()
+        for hostile in (b"", b"[1, 2]", b'{"pid": true, "host": 3}', b"\xff\xfe{"):
+            with open(path, "r+b") as fh:
+                fh.truncate(0)
+                fh.write(hostile)
+            assert holder(tmp_path, "r1").describe() == "another sweep"
+    assert not path.exists()
+
+
+_HOLD = textwrap.dedent(
+    """
+    import sys, time
+    from pathlib import Path
+    from localpbo_core.run_claims import try_claim
+    claim = try_claim(Path(sys.argv[1]), sys.argv[2])
+    print("held" if claim else "refused", flush=True)
+    time.sleep(600)
+    """
+)
+
+
+def test_a_claim_dies_with_its_process_even_by_sigkill(tmp_path) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _HOLD, str(tmp_path), "r1"], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert proc.stdout.readline().strip() == "held"
+        assert try_claim(tmp_path, "r1") is None
+        assert holder(tmp_path, "r1").pid == proc.pid
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert claim_path(tmp_path, "r1").exists()  # the file stays, the lock went with it
+    assert holder(tmp_path, "r1") is None
+    taken = try_claim(tmp_path, "r1")
+    assert taken is not None
+    taken.release()
+
+
+@pytest.fixture(scope="module")
+def spec():
+    return load_spec("tiny")  # Sobol and TuRPBO on Hartmann 6, 8 evaluations, seeds 0-1
+
+
+@pytest.fixture(scope="module")
+def reference(spec, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("reference")
+    assert len(sweep(spec, out, in_process=True, progress=False).finished) == 4
+    return out
+
+
+def _trace(doc: dict) -> dict:
+    keep = ("settings", "candidates", "answers")
+    records = [{k: v for k, v in r.items() if k != "decision_seconds"} for r in doc["records"]]
+    return {**{k: doc[k] for k in keep}, "records": records}
+
+
+def test_a_sweep_passes_over_runs_another_sweep_holds(spec, reference, tmp_path) -> None:
+    plans = spec.runs()
+    held = try_claim(tmp_path, plans[0].run_id)  # as another sweep would, mid-run
+    assert "under way" in format_dry_run(tmp_path, plans, None).splitlines()[1]
+    result = sweep(spec, tmp_path, in_process=True, progress=False)
+    assert list(result.elsewhere) == [plans[0].run_id]
+    assert f"pid {os.getpid()}" in result.elsewhere[plans[0].run_id]
+    assert sorted(result.finished) == sorted(p.run_id for p in plans[1:])
+    assert not run_path(tmp_path, plans[0]).exists()
+    left = [p.name for p in (tmp_path / ".claims").iterdir()]
+    assert left == [f"{plans[0].run_id}.claim"]  # only the held claim is left
+    held.release()
+    again = sweep(spec, tmp_path, in_process=True, progress=False)
+    assert again.finished == [plans[0].run_id] and not again.elsewhere
+    for plan in plans:
+        assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
+            read_run(run_path(reference, plan))
+        )
+    assert not list((tmp_path / ".claims").iterdir())
+
+
+def test_max_runs_counts_the_runs_this_sweep_computes(spec, tmp_path) -> None:
+    plans = spec.runs()
+    held = try_claim(tmp_path, plans[0].run_id)
+    result = sweep(spec, tmp_path, in_process=True, progress=False, max_runs=2)
+    held.release()
+    assert result.finished == [plans[1].run_id, plans[2].run_id]
+    assert result.pending == [plans[3].run_id] and list(result.elsewhere) == [plans[0].run_id]
+
+
+def test_a_run_stored_meanwhile_by_another_sweep_is_skipped(spec, reference, tmp_path) -> None:
+    plans = spec.runs()
+    copied = []
+
+    def store_the_next_as_another_sweep(plan) -> None:
+        following = plans[plans.index(plan) + 1 :]
+        if following and not copied:  # after planning, before this sweep reaches it
+            target = run_path(tmp_path, following[0])
+            target.write_bytes(run_path(reference, following[0]).read_bytes())
+            copied.append(following[0].run_id)
+
+    result = sweep(
+        spec, tmp_path, in_process=True, progress=False, on_stored=store_the_next_as_another_sweep
+    )
+    assert result.skipped == copied and len(result.finished) == 3 and not result.elsewhere
+
+
+def _cli_sweep(out: Path) -> subprocess.Popen[str]:
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "tiny", "--out", str(out)]
+    return subprocess.Popen(
+        [*cmd, "--in-process", "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+@pytest.mark.timeout(900)  # both cores may be loaded by other processes
+def test_the_same_command_in_two_processes_splits_the_runs(spec, reference, tmp_path) -> None:
+    """Two ``localpbo sweep --in-process`` processes started together on one folder: every
+    run is computed by exactly one of them, and the runs equal a single sweep's."""
+    procs = [_cli_sweep(tmp_path), _cli_sweep(tmp_path)]
+    outputs = [p.communicate(timeout=800) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], outputs
+    finished = [int(out.split(" runs finished")[0].rsplit(" ", 1)[-1]) for out, _ in outputs]
+    assert sum(finished) == 4, outputs  # no run computed twice, none left
+    for plan in spec.runs():
+        assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
+            read_run(run_path(reference, plan))
+        )
+    assert not list((tmp_path / ".claims").iterdir())
+
+
+@pytest.mark.timeout(900)
+def test_a_sweep_killed_mid_run_leaves_its_run_to_the_next(spec, reference, tmp_path) -> None:
+    """SIGKILL of a sweep while it computes: its claim goes with it; the next sweep runs what
+    is missing, and the stored runs equal a single sweep's."""
+    proc = _cli_sweep(tmp_path)
+    claims = tmp_path / ".claims"
+    deadline = time.monotonic() + 300
+    while not (claims.is_dir() and any(claims.iterdir())):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate()
+    assert main(["sweep", "tiny", "--out", str(tmp_path), "--in-process", "--no-progress"]) == 0
+    for plan in spec.runs():
+        assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
+            read_run(run_path(reference, plan))
+        )
+    assert not list(claims.iterdir())
