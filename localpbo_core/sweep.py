@@ -86,7 +86,7 @@ from localpbo_core.provenance import (
     replaced_block,
     run_code_state,
 )
-from localpbo_core.run_claims import Claim, Holder, holder, try_claim
+from localpbo_core.run_claims import CLAIMS_DIR, Claim, Holder, holder, try_claim
 from localpbo_core.settings import SettingError
 
 RUN_SUFFIX = ".json.gz"
@@ -675,6 +675,25 @@ def format_dry_run(
     return "\n".join(lines)
 
 
+def check_writable(out: Path) -> None:
+    """Refuse an output folder the sweep cannot make or write (runs and claims), before any
+    run is computed.
+
+    Raises:
+        SettingError: field ``--out``.
+    """
+    probe = out / CLAIMS_DIR / f".write-check.{os.getpid()}"
+    try:
+        (out / "runs").mkdir(parents=True, exist_ok=True)
+        probe.parent.mkdir(exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+        (out / "runs" / probe.name).write_bytes(b"")
+        (out / "runs" / probe.name).unlink()
+    except OSError as exc:
+        raise SettingError("--out", f"cannot write runs to {out}: {exc.strerror or exc}") from None
+
+
 def main_sweep(args: Any) -> int:
     """The ``localpbo sweep`` command (its arguments: :mod:`localpbo_core.cli`)."""
     from localpbo_core.arguments import parse_seeds
@@ -698,6 +717,7 @@ def main_sweep(args: Any) -> int:
     if args.dry_run:
         print(format_dry_run(out, plans, args.max_runs, reuse, args.rerun_changed))
         return 0
+    check_writable(out)
     if args.address is not None and not args.in_process:
         check_address(args.address)
     start = time.perf_counter()

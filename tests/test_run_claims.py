@@ -18,7 +18,8 @@ import pytest
 from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
 from localpbo_core.run_claims import claim_path, holder, try_claim
-from localpbo_core.sweep import format_dry_run, read_run, run_path, sweep
+from localpbo_core.settings import SettingError
+from localpbo_core.sweep import check_writable, format_dry_run, read_run, run_path, sweep
 
 
 def test_a_claim_is_exclusive_until_released(tmp_path) -> None:
@@ -193,3 +194,15 @@ def test_a_sweep_killed_mid_run_leaves_its_run_to_the_next(spec, reference, tmp_
             read_run(run_path(reference, plan))
         )
     assert not list(claims.iterdir())
+
+
+def test_an_unwritable_out_is_refused_before_any_run(tmp_path) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    with pytest.raises(SettingError) as refused:
+        check_writable(blocker / "sub")
+    assert refused.value.field == "--out" and "Not a directory" in refused.value.reason
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "tiny", "--out", str(blocker)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "--out: cannot write runs to" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
