@@ -165,6 +165,13 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         "--in-process", action="store_true", help="run sequentially in this process, no Ray"
     )
     sweep.add_argument("--max-runs", type=int, default=None, help="run at most N unfinished runs")
+    sweep.add_argument(
+        "--time-limit",
+        default=None,
+        metavar="DURATION",
+        help="e.g. 5400, 90m, 1h30m: start no run that its group's longest stored run says "
+        "would end later, and stop the runs still under way at the limit",
+    )
     sweep.add_argument("--problems", default=None, help="comma-separated problem labels")
     sweep.add_argument("--algorithms", default=None, help="comma-separated algorithm labels")
     sweep.add_argument("--variants", default=None, help="comma-separated variant labels")

@@ -32,6 +32,12 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
+* **Time limit** (``--time-limit 90m``; e.g. a batch job's wall time): a run is not started
+  when the longest run of its group (problem, algorithm, variant) stored in ``OUT`` says it
+  would end after the limit (:class:`RunTimes`; a group with no measured run starts); at
+  the limit the runs still under way stop as on SIGTERM (exit 130), so the limit holds
+  either way, and the same command continues. Ray sweeps submit one run per free CPU of
+  the cluster at a time, so both rules apply there too.
 * **Two sweeps, one folder**: a sweep claims each run before computing it
   (:mod:`localpbo_core.run_claims`: a lock the kernel drops when the sweep ends, however it
   ends) and passes over runs another live sweep holds, listing them as under way there; a
@@ -67,12 +73,13 @@ import gzip
 import json
 import logging
 import os
+import re
 import signal
 import socket
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
@@ -110,6 +117,8 @@ class SweepResult:
     reused: list[str] = field(default_factory=list)
     rerun: list[str] = field(default_factory=list)
     elsewhere: dict[str, str] = field(default_factory=dict)
+    over_time: list[str] = field(default_factory=list)
+    time_limit_reached: bool = False
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -356,6 +365,7 @@ def sweep(
     stop_on_sigterm: bool = False,
     reuse: Sequence[Path] = (),
     rerun_changed: bool = False,
+    time_limit: float | None = None,
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -375,6 +385,11 @@ def sweep(
             (module docstring, "Reuse"); ``max_runs`` counts computed runs only.
         rerun_changed: run again the stored runs made by code today's is not known to
             reproduce (module docstring, "Re-run"); they count as unfinished.
+        time_limit: seconds from the call (module docstring, "Time limit"): no run starts
+            that the longest stored run of its group (:class:`RunTimes`) says would end
+            later (it is left, in ``pending`` and ``over_time``); with ``stop_on_sigterm``
+            the runs still under way at the limit are stopped as by SIGTERM
+            (``time_limit_reached``).
 
     Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
     stops the runs under way and returns with ``interrupted`` set; every run finished before
@@ -382,6 +397,7 @@ def sweep(
     """
     from tqdm import tqdm
 
+    began = time.monotonic()
     plans = list(spec.runs() if runs is None else runs)
     result = SweepResult()
     todo = []
@@ -458,37 +474,158 @@ def sweep(
         result.failed[plan.run_id] = error
         bar.update(1)
 
-    try:
-        if in_process:
-            with _sigterm_interrupts(stop_on_sigterm):
-                for plan in todo:
-                    if len(started) >= limit:
-                        result.pending.append(plan.run_id)
-                    elif claim(plan):
-                        try:
-                            doc = execute_run(plan)
-                        except Exception as exc:  # a bug in one run must not stop the sweep
-                            fail(plan, f"{type(exc).__name__}: {exc}")
-                            continue
-                        store(plan, doc)
-        else:
-            for plan in todo:
-                if len(started) >= limit:
+    queue = list(todo)
+    times = RunTimes(out) if time_limit is not None else None
+    deadline = None if time_limit is None else began + time_limit
+
+    def next_plan() -> PlannedRun | None:
+        """The next run to start, claimed; None when there is none (left runs are noted)."""
+        while queue:
+            plan = queue.pop(0)
+            if len(started) >= limit:
+                result.pending.append(plan.run_id)
+                continue
+            if times is not None and deadline is not None:
+                longest = times.longest(plan)
+                if longest is not None and time.monotonic() + longest > deadline:
                     result.pending.append(plan.run_id)
-                else:
-                    claim(plan)
-            if started:
-                _run_on_ray(list(started), address, workers, store, fail, stop_on_sigterm)
+                    result.over_time.append(plan.run_id)
+                    continue
+            if claim(plan):
+                return plan
+        return None
+
+    def stored_and_timed(plan: PlannedRun, doc: dict[str, Any]) -> None:
+        if times is not None:
+            times.add(plan, doc)
+        store(plan, doc)
+
+    try:
+        with (
+            _sigterm_interrupts(stop_on_sigterm),
+            _hard_stop(deadline if stop_on_sigterm else None, result),
+        ):
+            if in_process:
+                while (run := next_plan()) is not None:
+                    try:
+                        doc = execute_run(run)
+                    except Exception as exc:  # a bug in one run must not stop the sweep
+                        fail(run, f"{type(exc).__name__}: {exc}")
+                        continue
+                    stored_and_timed(run, doc)
+            elif (first := next_plan()) is not None:
+                _run_on_ray(
+                    first, next_plan, address, workers, stored_and_timed, fail, stop_on_sigterm
+                )
     except KeyboardInterrupt:
-        result.interrupted = True
         settled = set(result.finished) | set(result.failed) | set(result.skipped)
         settled |= set(result.elsewhere) | set(result.pending)
         result.pending += [p.run_id for p in todo if p.run_id not in settled]
+        result.interrupted = bool(result.pending) or not result.time_limit_reached
     finally:
         for got in held.values():
             got.release()
         bar.close()
     return result
+
+
+class RunTimes:
+    """The wall seconds of the runs stored in a sweep folder, per group (the run id without
+    its seed: one problem, algorithm and variant), for ``--time-limit``: a run is not started
+    when the longest stored run of its group would not end before the limit.
+
+    A group's files are read once (their ``run_seconds``; copies made by ``--reuse`` and runs
+    without a measured time are passed over); runs this sweep finishes are added."""
+
+    def __init__(self, out: Path) -> None:
+        self.out = out
+        self._seconds: dict[str, list[float]] = {}
+
+    @staticmethod
+    def group(run_id: str) -> str:
+        """``hopper__turpbo__seed3`` -> ``hopper__turpbo``."""
+        return run_id.rsplit("__seed", 1)[0]
+
+    def _group_seconds(self, group: str) -> list[float]:
+        if group not in self._seconds:
+            seconds = []
+            for path in sorted((self.out / "runs").glob(f"{group}__seed*{RUN_SUFFIX}")):
+                if self.group(path.name[: -len(RUN_SUFFIX)]) != group:
+                    continue
+                try:
+                    doc = read_run(path)
+                except (OSError, ValueError, EOFError, SettingError):
+                    continue
+                measured = self._measured(doc)
+                if measured is not None:
+                    seconds.append(measured)
+            self._seconds[group] = seconds
+        return self._seconds[group]
+
+    @staticmethod
+    def _measured(doc: dict[str, Any]) -> float | None:
+        value = doc.get("run_seconds")
+        if (doc.get("run") or {}).get("reused_from") or not isinstance(value, int | float):
+            return None
+        return float(value) if value > 0 else None
+
+    def longest(self, plan: PlannedRun) -> float | None:
+        """The longest wall time of ``plan``'s group's runs (None: none measured)."""
+        seconds = self._group_seconds(self.group(plan.run_id))
+        return max(seconds) if seconds else None
+
+    def add(self, plan: PlannedRun, doc: dict[str, Any]) -> None:
+        """Count the run this sweep just finished."""
+        measured = self._measured(doc)
+        if measured is not None:
+            self._group_seconds(self.group(plan.run_id)).append(measured)
+
+
+@contextlib.contextmanager
+def _hard_stop(deadline: float | None, result: SweepResult) -> Iterator[None]:
+    """At ``deadline`` (``time.monotonic()``; None: never) the sweep sends itself SIGTERM,
+    which stops it as a SIGTERM from outside does (the caller handles SIGTERM), and notes
+    ``result.time_limit_reached``. Leaving the block cancels it."""
+    if deadline is None:
+        yield
+        return
+    armed = threading.Lock()
+    active = [True]
+
+    def fire() -> None:
+        with armed:
+            if active[0]:
+                result.time_limit_reached = True
+                os.kill(os.getpid(), signal.SIGTERM)
+
+    timer = threading.Timer(max(0.0, deadline - time.monotonic()), fire)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        with armed:
+            active[0] = False
+        timer.cancel()
+
+
+def parse_duration(text: str) -> float:
+    """Seconds in ``"5400"``, ``"90m"``, ``"1h30m"``, ``"2h"``, ``"45s"`` or ``"1d"``.
+
+    Raises:
+        SettingError: field ``--time-limit``.
+    """
+    units = {"d": 86400.0, "h": 3600.0, "m": 60.0, "s": 1.0, "": 1.0}
+    parts = re.fullmatch(r"(?:\d+(?:\.\d+)?[dhms]?)+", text.strip())
+    total = 0.0
+    if parts:
+        for number, unit in re.findall(r"(\d+(?:\.\d+)?)([dhms]?)", text.strip()):
+            total += float(number) * units[unit]
+    if not parts or total <= 0:
+        raise SettingError(
+            "--time-limit", f"expected a positive duration such as 5400, 90m or 1h30m, got {text!r}"
+        )
+    return total
 
 
 LOOPBACK_ONLY_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
@@ -572,7 +709,8 @@ def stop_ray() -> None:
 
 
 def _run_on_ray(
-    todo: Iterable[PlannedRun],
+    first: PlannedRun,
+    next_plan: Callable[[], PlannedRun | None],
     address: str | None,
     workers: int | None,
     store: Callable[[PlannedRun, dict[str, Any]], None],
@@ -596,10 +734,12 @@ def _run_on_ray(
         # after ray.init, whose own SIGTERM handler exits at once
         with _sigterm_interrupts(stop_on_sigterm):
             task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
-            refs = {task.remote(plan): plan for plan in todo}
-            waiting = list(refs)
-            while waiting:
-                done, waiting = ray.wait(waiting, num_returns=1)
+            slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
+            refs = {task.remote(first): first}
+            while refs:
+                while len(refs) < slots and (plan := next_plan()) is not None:
+                    refs[task.remote(plan)] = plan
+                done, _ = ray.wait(list(refs), num_returns=1)
                 for ref in done:
                     plan = refs.pop(ref)
                     try:
@@ -717,6 +857,7 @@ def main_sweep(args: Any) -> int:
     if args.dry_run:
         print(format_dry_run(out, plans, args.max_runs, reuse, args.rerun_changed))
         return 0
+    time_limit = None if args.time_limit is None else parse_duration(args.time_limit)
     check_writable(out)
     if args.address is not None and not args.in_process:
         check_address(args.address)
@@ -733,6 +874,7 @@ def main_sweep(args: Any) -> int:
         stop_on_sigterm=True,
         reuse=reuse,
         rerun_changed=args.rerun_changed,
+        time_limit=time_limit,
     )
     reused = f"{len(result.reused)} reused, " if reuse else ""
     rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""
@@ -746,6 +888,13 @@ def main_sweep(args: Any) -> int:
         print(f"FAILED {run_id}: {error}")
     for run_id, who in sorted(result.elsewhere.items()):
         print(f"UNDER WAY {run_id}: claimed by {who}; not run here")
+    if result.over_time:
+        print(
+            f"not started, would end after --time-limit {args.time_limit}: "
+            + ", ".join(result.over_time)
+        )
+    if result.time_limit_reached and result.interrupted:
+        print(f"--time-limit {args.time_limit} reached: the runs under way were stopped")
     if result.interrupted:
         print("interrupted: the same command continues with the runs left", file=sys.stderr)
         return EXIT_INTERRUPTED

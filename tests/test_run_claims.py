@@ -19,7 +19,16 @@ from localpbo_core.cli import main
 from localpbo_core.experiments import load_spec
 from localpbo_core.run_claims import claim_path, holder, try_claim
 from localpbo_core.settings import SettingError
-from localpbo_core.sweep import check_writable, format_dry_run, read_run, run_path, sweep
+from localpbo_core.sweep import (
+    RunTimes,
+    check_writable,
+    format_dry_run,
+    parse_duration,
+    read_run,
+    run_path,
+    sweep,
+    write_run,
+)
 
 
 def test_a_claim_is_exclusive_until_released(tmp_path) -> None:
@@ -206,3 +215,63 @@ def test_an_unwritable_out_is_refused_before_any_run(tmp_path) -> None:
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and "--out: cannot write runs to" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_durations_parse_and_bad_ones_are_refused() -> None:
+    assert parse_duration("5400") == 5400.0
+    assert parse_duration("90m") == 5400.0
+    assert parse_duration("1h30m") == 5400.0
+    assert parse_duration("1d2h3m4s") == 86400 + 7200 + 180 + 4
+    assert parse_duration(" 2.5h ") == 9000.0
+    for bad in ("", "0", "0m", "-5m", "1x", "h", "1h 30m", "inf", "nan"):
+        with pytest.raises(SettingError) as refused:
+            parse_duration(bad)
+        assert refused.value.field == "--time-limit"
+
+
+def _stored_with_seconds(source: Path, target: Path, seconds: float, reused: bool = False) -> None:
+    doc = read_run(source)
+    doc["run_seconds"] = seconds
+    if reused:
+        doc["run"] = {**doc["run"], "reused_from": "elsewhere/x"}
+    write_run(target, doc)
+
+
+def test_run_times_are_the_groups_measured_runs(spec, reference, tmp_path) -> None:
+    plans = spec.runs()  # sobol seeds 0-1, turpbo seeds 0-1 on hartmann6
+    sobol0, sobol1, turpbo0, turpbo1 = plans
+    _stored_with_seconds(run_path(reference, turpbo0), run_path(tmp_path, turpbo0), 30.0)
+    _stored_with_seconds(run_path(reference, sobol0), run_path(tmp_path, sobol0), 9e9, True)
+    times = RunTimes(tmp_path)
+    assert RunTimes.group("hartmann6__turpbo__noise0.1__seed12") == "hartmann6__turpbo__noise0.1"
+    assert times.longest(turpbo1) == 30.0
+    assert times.longest(sobol1) is None  # a copy made by --reuse measures nothing
+    times.add(turpbo1, {"run_seconds": 45.0, "run": {}})
+    assert times.longest(turpbo0) == 45.0
+
+
+def test_a_run_that_would_end_after_the_limit_is_not_started(spec, reference, tmp_path) -> None:
+    plans = spec.runs()
+    _stored_with_seconds(run_path(reference, plans[2]), run_path(tmp_path, plans[2]), 7200.0)
+    result = sweep(spec, tmp_path, in_process=True, progress=False, time_limit=3600.0)
+    assert result.over_time == [plans[3].run_id] == result.pending
+    assert sorted(result.finished) == sorted(p.run_id for p in plans[:2])
+    assert not result.interrupted and not result.time_limit_reached
+    assert not run_path(tmp_path, plans[3]).exists()
+    assert not list((tmp_path / ".claims").iterdir())
+
+
+@pytest.mark.timeout(900)
+def test_the_time_limit_stops_the_runs_under_way(tmp_path) -> None:
+    """A limit shorter than one run: the sweep stops it as on SIGTERM (exit 130), stores
+    nothing, leaves no claim, and says why; the same command without the limit continues."""
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "synthetic", "--out", str(tmp_path)]
+    cmd += ["--problems", "levy32", "--algorithms", "turpbo", "--seeds", "0"]  # minutes long
+    cmd += ["--in-process", "--no-progress"]
+    began = time.monotonic()
+    done = subprocess.run([*cmd, "--time-limit", "2s"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 130, done
+    assert "--time-limit 2s reached: the runs under way were stopped" in done.stdout
+    assert "1 left" in done.stdout and time.monotonic() - began < 60
+    assert not list((tmp_path / "runs").glob("*.json.gz"))
+    assert not list((tmp_path / ".claims").iterdir())

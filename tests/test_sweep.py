@@ -444,6 +444,30 @@ def test_ctrl_c_and_sigterm_stop_a_ray_sweep(signum, tmp_path) -> None:
     assert len(list((out / "runs").glob("*.json.gz"))) == SWEEP_RUNS
 
 
+@pytest.mark.timeout(900)
+def test_the_time_limit_stops_a_ray_sweep_cleanly(tmp_path) -> None:
+    """``--time-limit`` shorter than the runs: the Ray sweep stops them as on SIGTERM (exit
+    130, the limit named), and nothing of its Ray nor any claim stays behind."""
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "synthetic", "--out", str(tmp_path)]
+    cmd += ["--problems", "levy32", "--algorithms", "turpbo", "--seeds", "0-2", "--workers", "2"]
+    proc = subprocess.Popen(
+        [*cmd, "--no-progress", "--time-limit", "20s"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 130, (out, err)
+    assert "--time-limit 20s reached: the runs under way were stopped" in out
+    assert "0 runs finished" in out and "3 left" in out
+    assert not list(ray_cleanup.PARENT.glob(f"{ray_cleanup.PREFIX}{proc.pid}-*"))
+    deadline = time.monotonic() + 15  # the watchdog ends once it sees the driver gone
+    while _watchdogs(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _watchdogs(proc.pid)
+    assert not list((tmp_path / ".claims").iterdir())
+
+
 @pytest.mark.parametrize("delay_s", [0.0, 2.0])
 def test_sigterm_while_ray_starts_stops_the_sweep_cleanly(delay_s, tmp_path) -> None:
     """SIGTERM while the embedded Ray is still starting (its private folder made, ``ray.init``
