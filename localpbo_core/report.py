@@ -715,7 +715,9 @@ def write_report(
         "skips stored runs; `--dry-run` lists them first), here or on a Ray cluster with "
         "`--address auto` (docs/reproducing.md). `--reuse` names the folders with runs of the "
         "same problem and algorithm in the same model setting; the sweep copies from them only "
-        "runs of the same settings.",
+        "runs of the same settings. A command started with `--in-process` in several shells "
+        "splits its runs between them (a sweep claims each run before computing it), and "
+        "`--time-limit 3h` starts no run that would end after the limit.",
         "",
         "```",
         *(c.command for c in plan),

@@ -44,7 +44,9 @@
   run another sweep stored meanwhile is skipped. So a second copy of a command never
   computes a run twice, and the same ``--in-process`` command started in two shells splits
   the runs between them (each claims the next free run just before computing it; a Ray
-  sweep claims the runs it submits). ``--dry-run`` shows claimed runs as "under way".
+  sweep claims the runs it submits). ``--dry-run`` shows claimed runs as "under way". Every
+  write of a run, copies by ``--reuse`` too, happens under its claim, so the claim's holder
+  removes the temporary file a writer killed mid-write left behind.
 * **Re-run** (``--rerun-changed``): a stored run that today's code is not known to make again
   (its algorithm's sources changed since it was stored and no recorded re-run showed the same
   trace, or no code version is known: "changed since" and "none stored" of
@@ -157,6 +159,16 @@ def write_run(path: Path, doc: dict[str, Any]) -> None:
     with open(tmp, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", mtime=0) as fh:
         fh.write(data)
     os.replace(tmp, path)
+
+
+def _remove_partial_writes(out: Path, plan: PlannedRun) -> None:
+    """Remove the temporary files of ``plan``'s run left by a writer that was killed while
+    writing (:func:`write_run`). Called by the holder of the run's claim: every write of a
+    run happens under its claim, so no live writer owns them."""
+    final = run_path(out, plan)
+    for tmp in final.parent.glob(f".{final.name}.*.tmp"):
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
 
 
 def read_run(path: Path) -> dict[str, Any]:
@@ -419,16 +431,22 @@ def sweep(
     out.mkdir(parents=True, exist_ok=True)
     (out / "spec.json").write_text(json.dumps(_spec_document(spec), indent=1) + "\n")
     for plan, source in copies:
-        write_run(run_path(out, plan), reused_document(source, plan))
+        copying = try_claim(out, plan.run_id)
+        if copying is None:
+            result.elsewhere[plan.run_id] = (holder(out, plan.run_id) or Holder()).describe()
+            continue
+        with copying:
+            _remove_partial_writes(out, plan)
+            write_run(run_path(out, plan), reused_document(source, plan))
         result.reused.append(plan.run_id)
     limit = len(todo) if max_runs is None else max_runs
-    skipped_before = len(result.skipped)
+    skipped_before, elsewhere_before = len(result.skipped), len(result.elsewhere)
     bar = tqdm(total=min(limit, len(todo)), disable=not progress, unit="run", dynamic_ncols=True)
     held: dict[str, Claim] = {}
     started: list[PlannedRun] = []
 
     def passed_over() -> None:
-        passed = len(result.elsewhere) + len(result.skipped) - skipped_before
+        passed = len(result.elsewhere) - elsewhere_before + len(result.skipped) - skipped_before
         bar.total = min(limit, len(todo) - passed)
         bar.refresh()
 
@@ -445,6 +463,7 @@ def sweep(
             result.skipped.append(plan.run_id)
             passed_over()
             return False
+        _remove_partial_writes(out, plan)
         held[plan.run_id] = got
         started.append(plan)
         return True

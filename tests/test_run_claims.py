@@ -275,3 +275,68 @@ def test_the_time_limit_stops_the_runs_under_way(tmp_path) -> None:
     assert "1 left" in done.stdout and time.monotonic() - began < 60
     assert not list((tmp_path / "runs").glob("*.json.gz"))
     assert not list((tmp_path / ".claims").iterdir())
+
+
+@pytest.mark.timeout(1200)
+def test_three_sweeps_killed_at_random_points_still_store_every_run_once(
+    spec, reference, tmp_path
+) -> None:
+    """Three ``--in-process`` sweeps of one folder, each SIGKILLed at a random moment (seeded)
+    and started again, until the folder is complete: every stored run equals the
+    uninterrupted sweep's, no temporary file or claim is left, and a final sweep finds
+    everything stored."""
+    import random
+
+    rng = random.Random(7)
+    runs = tmp_path / "runs"
+    deadline = time.monotonic() + 900
+    rounds = 0
+    while len(list(runs.glob("*.json.gz"))) < 4:
+        assert time.monotonic() < deadline, "the sweeps made no progress"
+        procs = [_cli_sweep(tmp_path) for _ in range(3)]
+        time.sleep(rng.uniform(2.0, 8.0))  # imports take ~2 s; a run of the tiny spec ~1-5 s
+        for proc in procs:
+            if rng.random() < 0.7:
+                proc.send_signal(signal.SIGKILL)
+        for proc in procs:
+            proc.communicate(timeout=600)
+        rounds += 1
+    for plan in spec.runs():
+        assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
+            read_run(run_path(reference, plan))
+        )
+    assert not [p.name for p in runs.iterdir() if not p.name.endswith(".json.gz")]
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "tiny", "--out", str(tmp_path)]
+    final = subprocess.run(
+        [*cmd, "--in-process", "--no-progress"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert final.returncode == 0 and "0 runs finished, 4 already stored" in final.stdout
+    assert not list((tmp_path / ".claims").iterdir())
+    assert rounds >= 1
+
+
+def test_the_claims_holder_removes_a_killed_writers_temporary_file(spec, tmp_path) -> None:
+    plan = spec.runs()[0]
+    final = run_path(tmp_path, plan)
+    final.parent.mkdir(parents=True)
+    partial = final.with_name(f".{final.name}.99999999.tmp")
+    partial.write_bytes(b"\x1f\x8b half a run")
+    other = final.with_name(f".{spec.runs()[1].run_id}.json.gz.99999999.tmp")
+    other.write_bytes(b"")
+    held = try_claim(tmp_path, spec.runs()[1].run_id)  # its writer may still be alive
+    sweep(spec, tmp_path, runs=[plan], in_process=True, progress=False)
+    assert final.exists() and not partial.exists() and other.exists()
+    held.release()
+
+
+def test_a_copy_by_reuse_waits_for_the_claim_too(spec, reference, tmp_path) -> None:
+    plans = spec.runs()
+    held = try_claim(tmp_path, plans[0].run_id)
+    result = sweep(spec, tmp_path, in_process=True, progress=False, reuse=[reference])
+    held.release()
+    assert list(result.elsewhere) == [plans[0].run_id]
+    assert sorted(result.reused) == sorted(p.run_id for p in plans[1:]) and not result.finished
+    assert not run_path(tmp_path, plans[0]).exists()
