@@ -539,8 +539,10 @@ def sweep(
     except KeyboardInterrupt:
         settled = set(result.finished) | set(result.failed) | set(result.skipped)
         settled |= set(result.elsewhere) | set(result.pending)
-        result.pending += [p.run_id for p in todo if p.run_id not in settled]
-        result.interrupted = bool(result.pending) or not result.time_limit_reached
+        cut = [p.run_id for p in todo if p.run_id not in settled]
+        result.pending += cut
+        # the time limit's signal can land just after the last run: then nothing was cut
+        result.interrupted = bool(cut) or not result.time_limit_reached
     finally:
         for got in held.values():
             got.release()
@@ -804,8 +806,7 @@ def format_dry_run(
     """One line per run: its id, state (finished / reuse / will run / will rerun / under way
     in another sweep / left for later) and budget."""
     lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
-    counts = {"finished": 0, "reuse": 0, "will run": 0, "will rerun": 0, "under way": 0}
-    counts["later"] = 0
+    counts = dict.fromkeys(("finished", "reuse", "will run", "will rerun", "under way", "later"), 0)
     if not reuse:
         del counts["reuse"]
     if not rerun_changed:
