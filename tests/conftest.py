@@ -95,3 +95,22 @@ def stored_runs_read_once() -> Iterator[None]:
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(report, "read_stored_run", read_once)
         yield
+
+
+@pytest.fixture(scope="module")
+def tiny_spec() -> Any:
+    """The bundled ``tiny`` spec: Sobol and TuRPBO on Hartmann 6, 8 evaluations, seeds 0-1."""
+    from localpbo_core.experiments import load_spec
+
+    return load_spec("tiny")
+
+
+@pytest.fixture(scope="module")
+def tiny_reference(tiny_spec: Any, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The uninterrupted in-process sweep of the ``tiny`` spec (no Ray): its 4 runs."""
+    from localpbo_core.sweep import sweep
+
+    out = tmp_path_factory.mktemp("reference")
+    result = sweep(tiny_spec, out, in_process=True, progress=False)
+    assert len(result.finished) == 4 and not result.failed
+    return out

@@ -16,7 +16,6 @@ from pathlib import Path
 import pytest
 
 from localpbo_core.cli import main
-from localpbo_core.experiments import load_spec
 from localpbo_core.run_claims import claim_path, holder, try_claim
 from localpbo_core.settings import SettingError
 from localpbo_core.sweep import (
@@ -94,29 +93,17 @@ def test_a_claim_dies_with_its_process_even_by_sigkill(tmp_path) -> None:
     taken.release()
 
 
-@pytest.fixture(scope="module")
-def spec():
-    return load_spec("tiny")  # Sobol and TuRPBO on Hartmann 6, 8 evaluations, seeds 0-1
-
-
-@pytest.fixture(scope="module")
-def reference(spec, tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("reference")
-    assert len(sweep(spec, out, in_process=True, progress=False).finished) == 4
-    return out
-
-
 def _trace(doc: dict) -> dict:
     keep = ("settings", "candidates", "answers")
     records = [{k: v for k, v in r.items() if k != "decision_seconds"} for r in doc["records"]]
     return {**{k: doc[k] for k in keep}, "records": records}
 
 
-def test_a_sweep_passes_over_runs_another_sweep_holds(spec, reference, tmp_path) -> None:
-    plans = spec.runs()
+def test_a_sweep_passes_over_runs_another_sweep_holds(tiny_spec, tiny_reference, tmp_path) -> None:
+    plans = tiny_spec.runs()
     held = try_claim(tmp_path, plans[0].run_id)  # as another sweep would, mid-run
     assert "under way" in format_dry_run(tmp_path, plans, None).splitlines()[1]
-    result = sweep(spec, tmp_path, in_process=True, progress=False)
+    result = sweep(tiny_spec, tmp_path, in_process=True, progress=False)
     assert list(result.elsewhere) == [plans[0].run_id]
     assert f"pid {os.getpid()}" in result.elsewhere[plans[0].run_id]
     assert sorted(result.finished) == sorted(p.run_id for p in plans[1:])
@@ -124,37 +111,43 @@ def test_a_sweep_passes_over_runs_another_sweep_holds(spec, reference, tmp_path)
     left = [p.name for p in (tmp_path / ".claims").iterdir()]
     assert left == [f"{plans[0].run_id}.claim"]  # only the held claim is left
     held.release()
-    again = sweep(spec, tmp_path, in_process=True, progress=False)
+    again = sweep(tiny_spec, tmp_path, in_process=True, progress=False)
     assert again.finished == [plans[0].run_id] and not again.elsewhere
     for plan in plans:
         assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
-            read_run(run_path(reference, plan))
+            read_run(run_path(tiny_reference, plan))
         )
     assert not list((tmp_path / ".claims").iterdir())
 
 
-def test_max_runs_counts_the_runs_this_sweep_computes(spec, tmp_path) -> None:
-    plans = spec.runs()
+def test_max_runs_counts_the_runs_this_sweep_computes(tiny_spec, tmp_path) -> None:
+    plans = tiny_spec.runs()
     held = try_claim(tmp_path, plans[0].run_id)
-    result = sweep(spec, tmp_path, in_process=True, progress=False, max_runs=2)
+    result = sweep(tiny_spec, tmp_path, in_process=True, progress=False, max_runs=2)
     held.release()
     assert result.finished == [plans[1].run_id, plans[2].run_id]
     assert result.pending == [plans[3].run_id] and list(result.elsewhere) == [plans[0].run_id]
 
 
-def test_a_run_stored_meanwhile_by_another_sweep_is_skipped(spec, reference, tmp_path) -> None:
-    plans = spec.runs()
+def test_a_run_stored_meanwhile_by_another_sweep_is_skipped(
+    tiny_spec, tiny_reference, tmp_path
+) -> None:
+    plans = tiny_spec.runs()
     copied = []
 
     def store_the_next_as_another_sweep(plan) -> None:
         following = plans[plans.index(plan) + 1 :]
         if following and not copied:  # after planning, before this sweep reaches it
             target = run_path(tmp_path, following[0])
-            target.write_bytes(run_path(reference, following[0]).read_bytes())
+            target.write_bytes(run_path(tiny_reference, following[0]).read_bytes())
             copied.append(following[0].run_id)
 
     result = sweep(
-        spec, tmp_path, in_process=True, progress=False, on_stored=store_the_next_as_another_sweep
+        tiny_spec,
+        tmp_path,
+        in_process=True,
+        progress=False,
+        on_stored=store_the_next_as_another_sweep,
     )
     assert result.skipped == copied and len(result.finished) == 3 and not result.elsewhere
 
@@ -170,7 +163,9 @@ def _cli_sweep(out: Path) -> subprocess.Popen[str]:
 
 
 @pytest.mark.timeout(900)  # both cores may be loaded by other processes
-def test_the_same_command_in_two_processes_splits_the_runs(spec, reference, tmp_path) -> None:
+def test_the_same_command_in_two_processes_splits_the_runs(
+    tiny_spec, tiny_reference, tmp_path
+) -> None:
     """Two ``localpbo sweep --in-process`` processes started together on one folder: every
     run is computed by exactly one of them, and the runs equal a single sweep's."""
     procs = [_cli_sweep(tmp_path), _cli_sweep(tmp_path)]
@@ -178,15 +173,17 @@ def test_the_same_command_in_two_processes_splits_the_runs(spec, reference, tmp_
     assert [p.returncode for p in procs] == [0, 0], outputs
     finished = [int(out.split(" runs finished")[0].rsplit(" ", 1)[-1]) for out, _ in outputs]
     assert sum(finished) == 4, outputs  # no run computed twice, none left
-    for plan in spec.runs():
+    for plan in tiny_spec.runs():
         assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
-            read_run(run_path(reference, plan))
+            read_run(run_path(tiny_reference, plan))
         )
     assert not list((tmp_path / ".claims").iterdir())
 
 
 @pytest.mark.timeout(900)
-def test_a_sweep_killed_mid_run_leaves_its_run_to_the_next(spec, reference, tmp_path) -> None:
+def test_a_sweep_killed_mid_run_leaves_its_run_to_the_next(
+    tiny_spec, tiny_reference, tmp_path
+) -> None:
     """SIGKILL of a sweep while it computes: its claim goes with it; the next sweep runs what
     is missing, and the stored runs equal a single sweep's."""
     proc = _cli_sweep(tmp_path)
@@ -198,9 +195,9 @@ def test_a_sweep_killed_mid_run_leaves_its_run_to_the_next(spec, reference, tmp_
     proc.send_signal(signal.SIGKILL)
     proc.communicate()
     assert main(["sweep", "tiny", "--out", str(tmp_path), "--in-process", "--no-progress"]) == 0
-    for plan in spec.runs():
+    for plan in tiny_spec.runs():
         assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
-            read_run(run_path(reference, plan))
+            read_run(run_path(tiny_reference, plan))
         )
     assert not list(claims.iterdir())
 
@@ -237,11 +234,11 @@ def _stored_with_seconds(source: Path, target: Path, seconds: float, reused: boo
     write_run(target, doc)
 
 
-def test_run_times_are_the_groups_measured_runs(spec, reference, tmp_path) -> None:
-    plans = spec.runs()  # sobol seeds 0-1, turpbo seeds 0-1 on hartmann6
+def test_run_times_are_the_groups_measured_runs(tiny_spec, tiny_reference, tmp_path) -> None:
+    plans = tiny_spec.runs()  # sobol seeds 0-1, turpbo seeds 0-1 on hartmann6
     sobol0, sobol1, turpbo0, turpbo1 = plans
-    _stored_with_seconds(run_path(reference, turpbo0), run_path(tmp_path, turpbo0), 30.0)
-    _stored_with_seconds(run_path(reference, sobol0), run_path(tmp_path, sobol0), 9e9, True)
+    _stored_with_seconds(run_path(tiny_reference, turpbo0), run_path(tmp_path, turpbo0), 30.0)
+    _stored_with_seconds(run_path(tiny_reference, sobol0), run_path(tmp_path, sobol0), 9e9, True)
     times = RunTimes(tmp_path)
     assert RunTimes.group("hartmann6__turpbo__noise0.1__seed12") == "hartmann6__turpbo__noise0.1"
     assert times.longest(turpbo1) == 30.0
@@ -250,10 +247,12 @@ def test_run_times_are_the_groups_measured_runs(spec, reference, tmp_path) -> No
     assert times.longest(turpbo0) == 45.0
 
 
-def test_a_run_that_would_end_after_the_limit_is_not_started(spec, reference, tmp_path) -> None:
-    plans = spec.runs()
-    _stored_with_seconds(run_path(reference, plans[2]), run_path(tmp_path, plans[2]), 7200.0)
-    result = sweep(spec, tmp_path, in_process=True, progress=False, time_limit=3600.0)
+def test_a_run_that_would_end_after_the_limit_is_not_started(
+    tiny_spec, tiny_reference, tmp_path
+) -> None:
+    plans = tiny_spec.runs()
+    _stored_with_seconds(run_path(tiny_reference, plans[2]), run_path(tmp_path, plans[2]), 7200.0)
+    result = sweep(tiny_spec, tmp_path, in_process=True, progress=False, time_limit=3600.0)
     assert result.over_time == [plans[3].run_id] == result.pending
     assert sorted(result.finished) == sorted(p.run_id for p in plans[:2])
     assert not result.interrupted and not result.time_limit_reached
@@ -279,7 +278,7 @@ def test_the_time_limit_stops_the_runs_under_way(tmp_path) -> None:
 
 @pytest.mark.timeout(1200)
 def test_three_sweeps_killed_at_random_points_still_store_every_run_once(
-    spec, reference, tmp_path
+    tiny_spec, tiny_reference, tmp_path
 ) -> None:
     """Three ``--in-process`` sweeps of one folder, each SIGKILLed at a random moment (seeded)
     and started again, until the folder is complete: every stored run equals the
@@ -301,9 +300,9 @@ def test_three_sweeps_killed_at_random_points_still_store_every_run_once(
         for proc in procs:
             proc.communicate(timeout=600)
         rounds += 1
-    for plan in spec.runs():
+    for plan in tiny_spec.runs():
         assert _trace(read_run(run_path(tmp_path, plan))) == _trace(
-            read_run(run_path(reference, plan))
+            read_run(run_path(tiny_reference, plan))
         )
     assert not [p.name for p in runs.iterdir() if not p.name.endswith(".json.gz")]
     cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "tiny", "--out", str(tmp_path)]
@@ -318,24 +317,24 @@ def test_three_sweeps_killed_at_random_points_still_store_every_run_once(
     assert rounds >= 1
 
 
-def test_the_claims_holder_removes_a_killed_writers_temporary_file(spec, tmp_path) -> None:
-    plan = spec.runs()[0]
+def test_the_claims_holder_removes_a_killed_writers_temporary_file(tiny_spec, tmp_path) -> None:
+    plan = tiny_spec.runs()[0]
     final = run_path(tmp_path, plan)
     final.parent.mkdir(parents=True)
     partial = final.with_name(f".{final.name}.99999999.tmp")
     partial.write_bytes(b"\x1f\x8b half a run")
-    other = final.with_name(f".{spec.runs()[1].run_id}.json.gz.99999999.tmp")
+    other = final.with_name(f".{tiny_spec.runs()[1].run_id}.json.gz.99999999.tmp")
     other.write_bytes(b"")
-    held = try_claim(tmp_path, spec.runs()[1].run_id)  # its writer may still be alive
-    sweep(spec, tmp_path, runs=[plan], in_process=True, progress=False)
+    held = try_claim(tmp_path, tiny_spec.runs()[1].run_id)  # its writer may still be alive
+    sweep(tiny_spec, tmp_path, runs=[plan], in_process=True, progress=False)
     assert final.exists() and not partial.exists() and other.exists()
     held.release()
 
 
-def test_a_copy_by_reuse_waits_for_the_claim_too(spec, reference, tmp_path) -> None:
-    plans = spec.runs()
+def test_a_copy_by_reuse_waits_for_the_claim_too(tiny_spec, tiny_reference, tmp_path) -> None:
+    plans = tiny_spec.runs()
     held = try_claim(tmp_path, plans[0].run_id)
-    result = sweep(spec, tmp_path, in_process=True, progress=False, reuse=[reference])
+    result = sweep(tiny_spec, tmp_path, in_process=True, progress=False, reuse=[tiny_reference])
     held.release()
     assert list(result.elsewhere) == [plans[0].run_id]
     assert sorted(result.reused) == sorted(p.run_id for p in plans[1:]) and not result.finished

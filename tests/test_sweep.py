@@ -57,17 +57,13 @@ def test_embedded_ray_listens_on_loopback_only(local_ray) -> None:
 
 
 @pytest.fixture(scope="module")
-def spec():
-    return load_spec("tiny")  # Sobol and TuRPBO on Hartmann 6, 8 evaluations, seeds 0-1
+def spec(tiny_spec):
+    return tiny_spec
 
 
 @pytest.fixture(scope="module")
-def reference(spec, tmp_path_factory) -> Path:
-    """The uninterrupted sweep, in-process (no Ray)."""
-    out = tmp_path_factory.mktemp("reference")
-    result = sweep(spec, out, in_process=True, progress=False)
-    assert len(result.finished) == 4 and not result.failed
-    return out
+def reference(tiny_reference) -> Path:
+    return tiny_reference
 
 
 def without_timings(doc: dict) -> dict:
