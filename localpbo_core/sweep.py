@@ -36,8 +36,9 @@
   when the longest run of its group (problem, algorithm, variant) stored in ``OUT`` says it
   would end after the limit (:class:`RunTimes`; a group with no measured run starts); at
   the limit the runs still under way stop as on SIGTERM (exit 130), so the limit holds
-  either way, and the same command continues. Ray sweeps submit one run per free CPU of
-  the cluster at a time, so both rules apply there too.
+  either way, and the same command continues. Ray sweeps keep at most as many runs
+  submitted as the cluster has CPUs, submitting the next as one ends, so both rules apply
+  there too.
 * **Two sweeps, one folder**: a sweep claims each run before computing it
   (:mod:`localpbo_core.run_claims`: a lock the kernel drops when the sweep ends, however it
   ends) and passes over runs another live sweep holds, listing them as under way there; a
