@@ -431,10 +431,14 @@ def sweep(
             todo.append(plan)
     out.mkdir(parents=True, exist_ok=True)
     (out / "spec.json").write_text(json.dumps(_spec_document(spec), indent=1) + "\n")
+
+    def held_elsewhere(plan: PlannedRun) -> None:
+        result.elsewhere[plan.run_id] = (holder(out, plan.run_id) or Holder()).describe()
+
     for plan, source in copies:
         copying = try_claim(out, plan.run_id)
         if copying is None:
-            result.elsewhere[plan.run_id] = (holder(out, plan.run_id) or Holder()).describe()
+            held_elsewhere(plan)
             continue
         with copying:
             _remove_partial_writes(out, plan)
@@ -445,6 +449,9 @@ def sweep(
     bar = tqdm(total=min(limit, len(todo)), disable=not progress, unit="run", dynamic_ncols=True)
     held: dict[str, Claim] = {}
     started: list[PlannedRun] = []
+    queue = iter(todo)
+    times = RunTimes(out) if time_limit is not None else None
+    deadline = None if time_limit is None else began + time_limit
 
     def passed_over() -> None:
         passed = len(result.elsewhere) - elsewhere_before + len(result.skipped) - skipped_before
@@ -456,7 +463,7 @@ def sweep(
         stored it meanwhile."""
         got = try_claim(out, plan.run_id)
         if got is None:
-            result.elsewhere[plan.run_id] = (holder(out, plan.run_id) or Holder()).describe()
+            held_elsewhere(plan)
             passed_over()
             return False
         if stored_state(out, plan, tables) == "finished":  # another sweep stored it meanwhile
@@ -479,6 +486,8 @@ def sweep(
         if plan.run_id in stale and tables is not None:
             old = read_run(path)
             doc = {**doc, "replaced": replaced_block(old, doc, tables.known_code(path, old))}
+        if times is not None:
+            times.add(plan, doc)  # before the file exists: a group read later counts it once
         write_run(path, doc)
         release(plan)
         result.finished.append(plan.run_id)
@@ -494,14 +503,9 @@ def sweep(
         result.failed[plan.run_id] = error
         bar.update(1)
 
-    queue = list(todo)
-    times = RunTimes(out) if time_limit is not None else None
-    deadline = None if time_limit is None else began + time_limit
-
     def next_plan() -> PlannedRun | None:
         """The next run to start, claimed; None when there is none (left runs are noted)."""
-        while queue:
-            plan = queue.pop(0)
+        for plan in queue:
             if len(started) >= limit:
                 result.pending.append(plan.run_id)
                 continue
@@ -515,11 +519,6 @@ def sweep(
                 return plan
         return None
 
-    def stored_and_timed(plan: PlannedRun, doc: dict[str, Any]) -> None:
-        if times is not None:
-            times.add(plan, doc)
-        store(plan, doc)
-
     try:
         with (
             _sigterm_interrupts(stop_on_sigterm),
@@ -532,11 +531,9 @@ def sweep(
                     except Exception as exc:  # a bug in one run must not stop the sweep
                         fail(run, f"{type(exc).__name__}: {exc}")
                         continue
-                    stored_and_timed(run, doc)
+                    store(run, doc)
             elif (first := next_plan()) is not None:
-                _run_on_ray(
-                    first, next_plan, address, workers, stored_and_timed, fail, stop_on_sigterm
-                )
+                _run_on_ray(first, next_plan, address, workers, store, fail, stop_on_sigterm)
     except KeyboardInterrupt:
         settled = set(result.finished) | set(result.failed) | set(result.skipped)
         settled |= set(result.elsewhere) | set(result.pending)
