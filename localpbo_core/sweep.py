@@ -898,7 +898,8 @@ def main_sweep(args: Any) -> int:
     rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""
     elsewhere = f", {len(result.elsewhere)} under way in another sweep" if result.elsewhere else ""
     print(
-        f"{spec.name}: {len(result.finished)} runs finished{rerun}, {reused}{len(result.skipped)} "
+        f"{spec.name}: {_count(len(result.finished), 'run')} finished{rerun}, {reused}"
+        f"{len(result.skipped)} "
         f"already stored, {len(result.failed)} failed, {len(result.pending)} left{elsewhere} "
         f"({time.perf_counter() - start:.1f} s); results in {out / 'runs'}"
     )
@@ -917,6 +918,11 @@ def main_sweep(args: Any) -> int:
         print("interrupted: the same command continues with the runs left", file=sys.stderr)
         return EXIT_INTERRUPTED
     return 1 if result.failed else 0
+
+
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun``, plural unless ``n`` is 1 ("1 run", "3 runs")."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 EXIT_INTERRUPTED = 130

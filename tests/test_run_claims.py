@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -162,6 +163,13 @@ def _cli_sweep(out: Path) -> subprocess.Popen[str]:
     )
 
 
+def _finished(out: str) -> int:
+    """The count of runs a sweep's summary line says it finished."""
+    found = re.search(r"(\d+) runs? finished", out)
+    assert found, out
+    return int(found.group(1))
+
+
 @pytest.mark.timeout(900)  # both cores may be loaded by other processes
 def test_the_same_command_in_two_processes_splits_the_runs(
     tiny_spec, tiny_reference, tmp_path
@@ -171,7 +179,7 @@ def test_the_same_command_in_two_processes_splits_the_runs(
     procs = [_cli_sweep(tmp_path), _cli_sweep(tmp_path)]
     outputs = [p.communicate(timeout=800) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], outputs
-    finished = [int(out.split(" runs finished")[0].rsplit(" ", 1)[-1]) for out, _ in outputs]
+    finished = [_finished(out) for out, _ in outputs]
     assert sum(finished) == 4, outputs  # no run computed twice, none left
     for plan in tiny_spec.runs():
         assert _trace(read_run(run_path(tmp_path, plan))) == _trace(

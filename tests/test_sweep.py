@@ -204,6 +204,19 @@ def test_filters_and_dry_run(spec, reference, capsys) -> None:
     assert "2 finished, 0 will run" in out
 
 
+def test_the_summary_counts_runs_in_words(spec, reference, tmp_path, capsys) -> None:
+    """The summary line says "1 run finished" for one run and "N runs" otherwise."""
+    import shutil
+
+    shutil.copytree(reference / "runs", tmp_path / "runs")
+    (tmp_path / "runs" / "hartmann6__sobol__seed1.json.gz").unlink()
+    assert main(["sweep", "tiny", "--out", str(tmp_path), "--in-process", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "tiny: 1 run finished, 3 already stored, 0 failed, 0 left" in out
+    assert main(["sweep", "tiny", "--out", str(tmp_path), "--in-process", "--no-progress"]) == 0
+    assert "tiny: 0 runs finished, 4 already stored" in capsys.readouterr().out
+
+
 def _rewrite(path: Path, change) -> None:
     """Store the run at ``path`` again after ``change(doc)``."""
     from localpbo_core.sweep import write_run
