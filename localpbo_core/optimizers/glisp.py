@@ -29,7 +29,7 @@ GLISp *minimises*, so "better" is "preferred"):
 * The surrogate fit, one linear program per step (glis's ``get_rbf_weights``), is solved by
   :func:`localpbo_core.optimizers.glisp_lp.rbf_weights`: the same program and solver with the
   same weights to the last bit, without linprog's copies and a presolve that finds nothing
-  (1.9x to 3x less time in the fits over whole runs; that module's docstring).
+  (docs/performance.md has the figures).
 * Comparison tolerance 1e-4 (GLISp table): in glis this is the decision maker's tie
   tolerance (``|f1 - f2| <= tol`` -> ``pref = 0``). Our oracle and the ask/tell contract
   report win/loss as ``pref = -1/+1`` and a "can't tell" answer

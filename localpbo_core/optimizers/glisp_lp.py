@@ -22,8 +22,9 @@ HiGHS element by element (1.2 million entries at d = 64 and 640 samples), and Hi
 presolve then searches the dense matrix and, nearly always, finds nothing to remove. Here
 the same column-wise matrix goes to the same HiGHS build (scipy's bundled one, with the
 options linprog sets) as numpy arrays, and presolve is left out whenever it cannot remove
-anything. Over whole stored runs the fits take 1.9x (Levy 32) to 3x (Hartmann 6) less time;
-single programs of 320 to 1,530 samples 3.5x to 4x.
+anything. HiGHS's own simplex iterations stay as they are, so the gain is largest on small
+programs (``python -m localpbo_core.benchmarks.glisp_lp`` prints it per size and over
+whole stored runs).
 
 Presolve changes the answer only if it reduces the program; when it finds nothing
 ("not reduced") HiGHS solves the original program, as with presolve off. Presolve runs
