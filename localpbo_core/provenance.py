@@ -94,7 +94,7 @@ ALGORITHM_MODULES: dict[str, tuple[str, ...]] = {
     "turpbo": ("turpbo.py", "gp_acquisition.py", "trust_region.py", "acquisition.py"),
     "qeubo": ("qeubo.py", "gp_acquisition.py", "acquisition.py"),
     "hbei": ("hbei.py", "acquisition.py"),
-    "glisp": ("glisp.py", "glisp_lp.py"),
+    "glisp": ("glisp.py", "glisp_lp.py", "glisp_pso.py", "glisp_acquisition.py"),
     "sobol": ("sobol.py",),
     "hybrid": (
         "hybrid.py",

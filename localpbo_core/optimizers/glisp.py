@@ -30,6 +30,11 @@ GLISp *minimises*, so "better" is "preferred"):
   :func:`localpbo_core.optimizers.glisp_lp.rbf_weights`: the same program and solver with the
   same weights to the last bit, without linprog's copies and a presolve that finds nothing
   (docs/performance.md has the figures).
+* The particle swarm is pyswarm's compiled loop, driven by
+  :func:`localpbo_core.optimizers.glisp_pso.pso`: pyswarm's result to the last bit, without
+  drawing the random factors of the 2,000 iterations a swarm almost never reaches. Each
+  particle's acquisition value is glis's, computed in one compiled pass
+  (:mod:`localpbo_core.optimizers.glisp_acquisition`).
 * Comparison tolerance 1e-4 (GLISp table): in glis this is the decision maker's tie
   tolerance (``|f1 - f2| <= tol`` -> ``pref = 0``). Our oracle and the ask/tell contract
   report win/loss as ``pref = -1/+1`` and a "can't tell" answer
@@ -64,8 +69,10 @@ from typing import Any, Protocol, Unpack, cast
 
 import numpy as np
 
+from localpbo_core.optimizers import glisp_acquisition, glisp_pso
 from localpbo_core.optimizers.base import Ask, Candidate, Duel, DuelAnswer, Outcome
 from localpbo_core.optimizers.glisp_lp import rbf_weights
+from localpbo_core.optimizers.glisp_pso import reproduces_installed_pyswarm
 from localpbo_core.optimizers.preference_optimizer import (
     PreferenceOptimizer,
     RunOptions,
@@ -99,20 +106,29 @@ def _glis_solvers() -> _GlisSolvers:
 def _pso_with_seed(pso: Callable[..., Any], seed: int) -> Callable[..., tuple[Any, Any]]:
     """``pso`` as glis calls it (``z, cost = pso(...)``), seeded.
 
-    pyswarm >= 1.0 takes ``seed=`` and returns a result object (``.x``, ``.fun``), which glis
-    2.0.2 cannot unpack; pyswarm 0.6 returns ``(x, f)`` and draws from numpy's global RNG,
-    which is then seeded for the call and restored afterwards.
+    glis's acquisition is evaluated by
+    :func:`~localpbo_core.optimizers.glisp_acquisition.fast_acquisition` where it gives glis's
+    values. With the pyswarm release :mod:`localpbo_core.optimizers.glisp_pso` reproduces, the
+    swarm is its :func:`~localpbo_core.optimizers.glisp_pso.pso` (pyswarm's result bit for bit,
+    without drawing the random factors of iterations the swarm never reaches). Otherwise
+    pyswarm's own: pyswarm >= 1.0 takes ``seed=`` and returns a result object (``.x``,
+    ``.fun``), which glis 2.0.2 cannot unpack; pyswarm 0.6 returns ``(x, f)`` and draws from
+    numpy's global RNG, which is then seeded for the call and restored afterwards.
     """
+    fast_swarm = reproduces_installed_pyswarm()
     takes_seed = "seed" in inspect.signature(pso).parameters
 
-    def seeded(*args: Any, **kwargs: Any) -> tuple[Any, Any]:
+    def seeded(func: Callable[..., float], *args: Any, **kwargs: Any) -> tuple[Any, Any]:
+        func = glisp_acquisition.fast_acquisition(func) or func
+        if fast_swarm:
+            return glisp_pso.pso(func, *args, seed=seed, **kwargs)
         if takes_seed:
-            res = pso(*args, seed=seed, **kwargs)
+            res = pso(func, *args, seed=seed, **kwargs)
         else:
             state = np.random.get_state()  # noqa: NPY002 - restored below
             np.random.seed(seed)  # noqa: NPY002 - pyswarm 0.6 only knows the global RNG
             try:
-                res = pso(*args, **kwargs)
+                res = pso(func, *args, **kwargs)
             finally:
                 np.random.set_state(state)  # noqa: NPY002
         if isinstance(res, tuple):
