@@ -57,6 +57,25 @@ def glisp_program(d: int, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, in
     return M, np.array(pairs), best
 
 
+def add_size_and_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options GLISp's benchmarks share: ``--max-n`` (skip larger sizes of
+    :data:`SIZES`) and ``--runs`` (stored runs to make again, ``SPEC:RUN_ID,...``)."""
+    parser.add_argument(
+        "--max-n", type=int, default=max(n for _, n in SIZES), help="skip larger sizes"
+    )
+    parser.add_argument(
+        "--runs",
+        default="synthetic:levy32__glisp__seed0,gp_out_of_model:gp64_l0.1__glisp__seed0",
+        help="whole runs SPEC:RUN_ID, comma-separated; '' for none",
+    )
+
+
+def stored_runs(text: str) -> list[tuple[str, str]]:
+    """``--runs``'s ``SPEC:RUN_ID`` items as ``(spec, run_id)`` pairs."""
+    pairs = [item.split(":", 1) for item in text.split(",") if item]
+    return [(spec, run_id) for spec, run_id in pairs]
+
+
 def _run_fits(spec: str, run_id: str) -> tuple[int, int, float, float, float]:
     """The stored-run plan ``run_id`` of ``spec`` made again (module docstring): programs,
     programs with the same weights, seconds of glis's fits, of ours, and the run's optimizer
@@ -108,14 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--repeats", type=int, default=3, help="solves per size (median)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument(
-        "--max-n", type=int, default=max(n for _, n in SIZES), help="skip larger sizes"
-    )
-    parser.add_argument(
-        "--runs",
-        default="synthetic:levy32__glisp__seed0,gp_out_of_model:gp64_l0.1__glisp__seed0",
-        help="whole runs SPEC:RUN_ID, comma-separated; '' for none",
-    )
+    add_size_and_run_arguments(parser)
     args = parser.parse_args(argv)
     glis_fit = cast(Any, _glis_solvers().GLISp).get_rbf_weights
     owner = SimpleNamespace(sepvalue=SEPARATION)
@@ -136,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{d:>4} {n:>5} {theirs:>9.3f} {ours:>9.3f} {theirs / ours:>6.1f}x"
             f"  {np.array_equal(reference, weights)!s:>9}  {'on' if presolve else 'off'}"
         )
-    runs = [item.split(":", 1) for item in args.runs.split(",") if item]
+    runs = stored_runs(args.runs)
     if runs:
         print(
             f"\n{'run':<34} {'fits':>6} {'same':>6} {'glis s':>9} {'ours s':>9} "

@@ -32,12 +32,12 @@ from typing import Any
 import numpy as np
 import pyswarm
 
+from localpbo_core.benchmarks.glisp_lp import SIZES, add_size_and_run_arguments, stored_runs
 from localpbo_core.optimizers import glisp, glisp_acquisition
 from localpbo_core.optimizers.glisp import _glis_solvers
 from localpbo_core.optimizers.glisp_acquisition import surrogate_acquisition
 from localpbo_core.optimizers.glisp_pso import pso
 
-SIZES = ((32, 320), (64, 640), (102, 1530))
 SWARM, ITERATIONS = 20, 2000  # GLISp's PSOswarmsize and PSOiters defaults
 MINFUNC = 1e-4  # glis's dF * PSOminfunc with a surrogate range of about 1
 
@@ -118,14 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description="Time GLISp's swarm step: glis's acquisition under pyswarm against ours.",
     )
     parser.add_argument("--repeats", type=int, default=5, help="swarms per size (median)")
-    parser.add_argument(
-        "--max-n", type=int, default=max(n for _, n in SIZES), help="skip larger sizes"
-    )
-    parser.add_argument(
-        "--runs",
-        default="synthetic:levy32__glisp__seed0,gp_out_of_model:gp64_l0.1__glisp__seed0",
-        help="whole runs SPEC:RUN_ID, comma-separated; '' for none",
-    )
+    add_size_and_run_arguments(parser)
     args = parser.parse_args(argv)
     for f in acquisitions(2, 5, 0):  # numba compiles both before any timing
         f(np.zeros(2))
@@ -138,7 +131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{d:>4} {n:>5} {theirs:>9.4f} {ours:>9.4f} {theirs / ours:>6.1f}x "
             f"{iterations:>6.1f}  {same}"
         )
-    runs = [item.split(":", 1) for item in args.runs.split(",") if item]
+    runs = stored_runs(args.runs)
     if runs:
         print(f"\n{'run':<34} {'glis s':>9} {'ours s':>9} {'ratio':>7}  same candidates")
     for spec, run_id in runs:
