@@ -558,3 +558,18 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         "In all 35 runs, about 1.1 core-hours, besides 20 runs with nothing stored to estimate from"
     )
     assert completion_costs(runs, []) == []
+
+
+def test_notes_state_what_the_last_levy32_gipbo_reruns_changed() -> None:
+    """notes, "Re-runs with today's code": the last marked groups (GIPBO on Levy 32 in
+    ``synthetic`` and ``beyond_local_steps``) against their re-runs' ``replaced`` blocks."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    blocks = [
+        read_run(RESULTS / spec / "runs" / f"levy32__gipbo__seed{seed}.json.gz")["replaced"]
+        for spec in ("synthetic", "beyond_local_steps")
+        for seed in range(10)
+    ]
+    assert all(b["same_answers"] and b["identical"] == 34 for b in blocks)
+    assert max(b["first_gap"] for b in blocks) < 1.5e-9
+    assert "`synthetic` and `beyond_local_steps` (20 runs)" in notes
+    assert "its first 34 candidates bit for bit, parting at the 35th by at most 1.4e-9" in notes
