@@ -713,10 +713,12 @@ def write_report(
         "",
         "To store what is missing: each command runs only the runs not stored yet (a sweep "
         "skips stored runs; `--dry-run` lists them first), here or on a Ray cluster with "
-        "`--address auto` (docs/reproducing.md). `--reuse` names the folders with runs of the "
-        "same problem and algorithm in the same model setting; the sweep copies from them only "
-        "runs of the same settings. A command started with `--in-process` in several shells "
-        "splits its runs between them (a sweep claims each run before computing it), and "
+        "`--address auto` (docs/reproducing.md). `--reuse` names the folders of other specs that "
+        "stored runs with the settings of missing ones (e.g. Sobol and GLISp, which take no GP "
+        "hyperparameters, of the other model setting); the sweep copies those instead of "
+        "computing them, and the costs below count them as free. A command started with "
+        "`--in-process` in several shells splits its runs between them (a sweep claims each "
+        "run before computing it), and "
         "`--time-limit 3h` starts no run that would end after the limit.",
         "",
         "```",

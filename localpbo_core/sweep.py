@@ -227,17 +227,26 @@ def rerun_tables(out: Path) -> ProvenanceTables:
     return ProvenanceTables(dict.fromkeys((out, out.resolve().parent)))
 
 
-def effective_settings(settings: dict[str, Any]) -> dict[str, Any] | None:
+def effective_settings(
+    settings: dict[str, Any], known: dict[str, dict[str, object]] | None = None
+) -> dict[str, Any] | None:
     """A stored ``settings`` block with its optimizer options completed by the algorithm's
     defaults (:func:`~localpbo_core.optimizers.optimizer_defaults`), in JSON types, so that
     an option spelled out at its default and one left out compare equal. None if the
-    algorithm is not registered."""
+    algorithm is not registered. ``known``, if given, keeps the defaults looked up by
+    algorithm name for the next call (reading a signature costs milliseconds a run)."""
     from localpbo_core.optimizers import optimizer_defaults
 
-    try:
-        defaults = optimizer_defaults(str(settings.get("algorithm")))
-    except SettingError:
-        return None
+    name = str(settings.get("algorithm"))
+    if known is not None and name in known:
+        defaults = known[name]
+    else:
+        try:
+            defaults = optimizer_defaults(name)
+        except SettingError:
+            return None
+        if known is not None:
+            known[name] = defaults
     skip = set(settings)  # e.g. initial_design: a field of the settings, not an option
     options = {k: v for k, v in defaults.items() if k not in skip}
     options.update(settings.get("optimizer_options") or {})

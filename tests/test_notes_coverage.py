@@ -106,8 +106,10 @@ def test_coverage_table_counts_what_is_stored(stored) -> None:
     for name in ("synthetic", "policy_warm_start"):
         spec = load_spec(name, validate=False)
         groups = len(spec.problems) * len(spec.algorithms)
-        have = sum(1 for k in stored if k[0] == name)
-        assert f"| {have} of {groups} | {have * 10} of {groups * 10} |" in rows[name]
+        seeds = [{r["seed"] for r in v} for k, v in stored.items() if k[0] == name]
+        have = sum(1 for s in seeds if s >= set(COVERAGE_SEEDS))  # complete groups
+        held = sum(len(s & set(COVERAGE_SEEDS)) for s in seeds)  # runs, partial groups too
+        assert f"| {have} of {groups} | {held} of {groups * 10} |" in rows[name]
     assert "| 0 of 16 | 0 of 160 | every group |" in rows["policy_no_warm_start"]
     # Walker2d without GIPBO and HB-EI is what the paper ran too (App. E has no time for them)
     assert rows["policy_warm_start"].endswith(
@@ -381,25 +383,44 @@ def test_notes_state_glisp_time_at_d64() -> None:
 def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) -> None:
     """Fabricated runs of two specs: the commands name each spec's missing groups as exact
     products (problems × algorithms), leave out the groups the paper did not run (Walker2d
-    GIPBO and HB-EI), write where the spec's runs are, and reuse the complete groups of the
-    same labels elsewhere."""
-    from localpbo_core.experiments.coverage import completion_commands
+    GIPBO and HB-EI), write where the spec's runs are, and reuse the folders of other specs
+    that stored runs with the same settings as missing ones (same labels alone are not
+    enough)."""
+    from dataclasses import replace
+
+    from localpbo_core.experiments.coverage import completion_commands, completion_plan
     from localpbo_core.report import StoredRun
+    from localpbo_core.run_documents import settings_document
     from tests.fabricated import stored_run
 
     def runs(spec: str, problem: str, algorithm: str, seeds: range) -> list[StoredRun]:
         return [stored_run(spec, problem, algorithm, s, 0.0, 0.0) for s in seeds]
 
+    def planned(spec: str, problem: str, algorithm: str, seeds: range) -> list[StoredRun]:
+        """Runs stored with the settings ``spec`` plans for them."""
+        plans = load_spec(spec, validate=False).runs([problem], [algorithm], None, list(seeds))
+        return [
+            replace(r, settings=settings_document(plan.settings))
+            for r, plan in zip(runs(spec, problem, algorithm, seeds), plans, strict=True)
+        ]
+
     ten = range(10)
     warm = load_spec("policy_warm_start", validate=False)
-    stored = [r for a in warm.algorithms for r in runs("policy_warm_start", "hopper", a.label, ten)]
-    stored += runs("policy_warm_start", "walker2d", "turpbo", ten)
+    stored = [
+        r
+        for a in warm.algorithms
+        if a.label != "turpbo"
+        for r in runs("policy_warm_start", "hopper", a.label, ten)
+    ]
+    stored += planned("policy_warm_start", "hopper", "turpbo", ten)
+    stored += planned("policy_warm_start", "walker2d", "turpbo", range(7))  # 7 of 10 copied
     stored += runs("policy_warm_start", "walker2d", "qeubo", range(5))  # half a group
     stored += runs("beyond_hybrid_policy", "hopper", "hybrid", ten)
     (tmp_path / "b" / "policy_warm_start" / "runs").mkdir(parents=True)
     inputs = [tmp_path / "a", tmp_path / "b"]
     a, b = (p.as_posix() for p in inputs)
-    assert completion_commands(stored, ["beyond_hybrid_policy", "policy_warm_start"], inputs) == [
+    specs = ["beyond_hybrid_policy", "policy_warm_start"]
+    assert completion_commands(stored, specs, inputs) == [
         f"localpbo sweep beyond_hybrid_policy --out {a}/beyond_hybrid_policy --problems hopper "
         "--algorithms hybrid_c0.5,hybrid_local,hybrid_probe,hybrid_probe0.5,"
         "hybrid_probe0.5_s0.5,turpbo --seeds 0-9 "
@@ -409,8 +430,35 @@ def test_completion_commands_store_exactly_the_missing_groups(tmp_path: Path) ->
         "hybrid_probe0.5_s0.5,turpbo --seeds 0-9 "
         f"--reuse {b}/policy_warm_start",
         f"localpbo sweep policy_warm_start --out {b}/policy_warm_start --problems walker2d "
-        "--algorithms gipbor,glisp,prefsqp,qeubo,sobol --seeds 0-9",
+        "--algorithms gipbor,glisp,prefsqp,qeubo,sobol,turpbo --seeds 0-9",
     ]
+    copies = {
+        (g.spec, g.problem, g.algorithm): (g.runs, g.copies)
+        for c in completion_plan(stored, specs, inputs)
+        for g in c.groups
+        if g.copies
+    }
+    assert copies == {
+        ("beyond_hybrid_policy", "hopper", "turpbo"): (10, 10),
+        ("beyond_hybrid_policy", "walker2d", "turpbo"): (10, 7),
+    }
+    labels_only = [r for r in stored if r.problem_label == "hopper"]
+    labels_only = [replace(r, settings={**r.settings, "seed": -1}) for r in labels_only]
+    assert not any(
+        "--reuse" in c for c in completion_commands(labels_only, specs, inputs)
+    )  # a complete TuRPBO group of other settings is no donor
+
+    # GP paths: Sobol and GLISp of the other model setting are the same runs; qEUBO's not.
+    out = [
+        r
+        for alg, seeds in (("glisp", ten), ("qeubo", range(2)), ("sobol", ten))
+        for r in planned("gp_out_of_model", "gp8_l0.1", alg, seeds)
+    ]
+    plan = completion_plan(out, ["gp_within"], [b])
+    wanted = [c for c in plan if any(g.problem == "gp8_l0.1" for g in c.groups)]
+    by_alg = {g.algorithm: g.copies for c in wanted for g in c.groups if g.problem == "gp8_l0.1"}
+    assert by_alg["glisp"] == by_alg["sobol"] == 10 and by_alg["qeubo"] == 0
+    assert all(f"--reuse {b}/gp_out_of_model" in c.command for c in wanted)
     assert completion_commands(stored[: 10 * len(warm.algorithms)], ["policy_warm_start"], [b])[
         0
     ].endswith(
@@ -463,7 +511,10 @@ def test_the_pages_completion_commands_run_the_missing_runs() -> None:
         and (not v.label or v.label in flags.get("--variants", "").split(","))
     ]
     lacking = [name for name in wanted if name not in stored]
-    assert lacking and f", {len(lacking)} will run, 0 later" in done.stdout, done.stdout[-400:]
+    # a sweep running now (its claims) shows some as "under way" instead
+    states = re.findall(r"(\d+) (will run|under way)", done.stdout.splitlines()[-1])
+    planned = sum(int(n) for n, _ in states)
+    assert lacking and planned == len(lacking) and ", 0 later" in done.stdout, done.stdout[-400:]
 
 
 def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
@@ -471,7 +522,7 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
     runs on a problem of the same kind and dimension, those other specs' in the same model
     setting, those the other setting, and for a preset last the runs of its algorithm (same
     setting first); CPU seconds beat optimizer seconds at each step; a group with nothing stored
-    to estimate from is counted apart, not as free."""
+    to estimate from is counted apart, not as free; runs the command copies cost nothing."""
     from dataclasses import replace
 
     from localpbo_core.experiments.coverage import (
@@ -558,6 +609,26 @@ def test_completion_costs_come_from_the_nearest_stored_runs() -> None:
         "In all 35 runs, about 1.1 core-hours, besides 20 runs with nothing stored to estimate from"
     )
     assert completion_costs(runs, []) == []
+
+    # Runs the command's --reuse copies cost nothing, even where nothing estimates the rest.
+    within = group("gp_within", "gp96_l0.5", "", "glisp")
+    unknown = group("gp_out_of_model", "gp96_l0.1", "", "glisp")
+    lines = completion_costs(
+        runs,
+        [
+            Completion(("c1",), (replace(within, copies=10),)),
+            Completion(("c2",), (replace(within, copies=4),)),
+            Completion(("c3",), (replace(unknown, copies=10),)),
+        ],
+    )
+    assert lines[2:5] == [
+        "| 1 | 10 | 0.0 | gp96_l0.5/glisp: 10 copied |",
+        "| 2 | 10 | 2.0 | gp96_l0.5/glisp: 4 copied, 20 min (1 run of the group; CPU seconds) |",
+        "| 3 | 10 | 0.0 | gp96_l0.1/glisp: 10 copied |",
+    ]
+    assert lines[-1].startswith(
+        "In all 30 runs (24 of them copies, which cost nothing), about 2.0 core-hours: one run"
+    )
 
 
 def test_notes_state_what_the_last_levy32_gipbo_reruns_changed() -> None:

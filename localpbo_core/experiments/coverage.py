@@ -10,6 +10,8 @@ and what each costs in core-hours, estimated from the nearest stored runs
 
 from __future__ import annotations
 
+import itertools
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -123,6 +125,9 @@ class MissingGroup:
     """The registered problem behind the label (e.g. ``gp_sample``)."""
     dim: int | None
     """The problem's ``dim`` option, if it has one."""
+    copies: int = 0
+    """Of its runs not stored, those another spec stored with the same settings: the
+    command's ``--reuse`` copies them instead of computing them."""
 
 
 @dataclass(frozen=True)
@@ -155,11 +160,14 @@ def completion_plan(
     their missing algorithms and variants share a command), so it runs nothing else: a sweep
     skips stored runs. Its ``--out`` is the folder under ``inputs`` (the report's run folders,
     relative to the repository when inside it) that holds the spec's runs, the first input's
-    when none does. ``--reuse`` names every other spec's folder with a complete group of the
-    same problem and algorithm labels in the same model setting (within or out of model); the
-    sweep copies from it only runs of the same settings (``localpbo sweep --reuse``), e.g. the
-    paper specs' TuRPBO runs that a ``beyond_*`` spec compares with."""
+    when none does. ``--reuse`` names the folder of every other spec that stored a run with
+    the settings of one of the command's missing runs (options completed by their defaults,
+    as ``localpbo sweep --reuse`` compares them), and the groups count those runs as copies:
+    e.g. the paper specs' TuRPBO runs that a ``beyond_*`` spec compares with, or the Sobol and
+    GLISp runs of the other model setting on the GP paths (they take no GP hyperparameters,
+    so a within-model run is its out-of-model twin)."""
     from localpbo_core.experiments import load_spec
+    from localpbo_core.run_documents import settings_document
 
     seeds = _stored_seeds(runs)
     wanted = set(COVERAGE_SEEDS)
@@ -167,7 +175,17 @@ def completion_plan(
     consecutive = ordered == list(range(ordered[0], ordered[-1] + 1))
     span = f"{ordered[0]}-{ordered[-1]}" if consecutive else ",".join(map(str, ordered))
     roots = [_shown(Path(p)) for p in inputs]
-    within = {r.spec: r.within_model for r in runs}
+    candidates: dict[str, list[StoredRun]] = {}
+    for r in runs:
+        settings = r.settings
+        cheap = _cheap_key(
+            settings.get("algorithm"),
+            settings.get("problem"),
+            settings.get("problem_options"),
+            r.seed,
+        )
+        candidates.setdefault(cheap, []).append(r)
+    known: dict[str, dict[str, object]] = {}
 
     def folder(name: str) -> str:
         held = [
@@ -180,7 +198,9 @@ def completion_plan(
     plan = []
     for name in specs:
         spec = load_spec(name, validate=False)
+        copies: dict[tuple[str, str, str], int] = {}
         entries = {e.label: e for e in spec.problems}
+        kinds = {e.label: e.name for e in spec.algorithms}
         missing = [k for k in spec.groups() if seeds.get((spec.name, *k), set()) & wanted != wanted]
         skipped = set(_not_in_paper(spec, missing)) if spec.name in PAPER_SPECS else set()
         algorithms: dict[tuple[str, str], set[str]] = {}
@@ -194,25 +214,31 @@ def completion_plan(
         for (algs, v), labels in problems.items():
             variants.setdefault((algs, tuple(sorted(labels))), []).append(v)
         for (algs, ps), vs in sorted(variants.items(), key=lambda kv: (kv[0][1], kv[0][0])):
-            donors = sorted(
-                {
-                    other
-                    for (other, p, v, a), have in seeds.items()
-                    if other != spec.name
-                    and not v
-                    and have >= wanted
-                    and within.get(other) == spec.within_model
-                    and p in ps
-                    and a in algs
-                    and "" in vs
-                }
-            )
+            donors: dict[tuple[str, str, str], set[str]] = {}
+            for p, v, a in itertools.product(ps, sorted(vs), algs):
+                for seed in sorted(wanted - seeds.get((spec.name, p, v, a), set())):
+                    near = candidates.get(
+                        _cheap_key(kinds[a], entries[p].name, entries[p].options, seed), []
+                    )
+                    if not any(r.spec != spec.name for r in near):
+                        continue  # no stored run to compare with: resolving may build the problem
+                    planned = spec.runs([p], [a], [v], [seed])  # empty: not a seed of spec
+                    keys = {_settings_key(settings_document(r.settings), known) for r in planned}
+                    found = {
+                        r.spec
+                        for r in near
+                        if r.spec != spec.name and _settings_key(r.settings, known) in keys - {""}
+                    }
+                    if not found:
+                        continue
+                    donors.setdefault((p, v, a), set()).update(found)
+                    copies[(p, v, a)] = copies.get((p, v, a), 0) + 1
             words = ["localpbo", "sweep", spec.name, "--out", folder(spec.name)]
             words += ["--problems", ",".join(ps), "--algorithms", ",".join(algs)]
             if any(vs):
                 words += ["--variants", ",".join(sorted(vs))]
             words += ["--seeds", span]
-            for other in donors:
+            for other in sorted(set().union(*donors.values())):
                 words += ["--reuse", folder(other)]
             groups = tuple(
                 MissingGroup(
@@ -224,6 +250,7 @@ def completion_plan(
                     spec.within_model,
                     entries[p].name,
                     _dim(entries[p].options),
+                    copies.get((p, v, a), 0),
                 )
                 for p in ps
                 for v in sorted(vs)
@@ -231,6 +258,26 @@ def completion_plan(
             )
             plan.append(Completion(tuple(words), groups))
     return plan
+
+
+def _settings_key(settings: dict[str, Any], known: dict[str, dict[str, object]]) -> str:
+    """A run's settings as ``localpbo sweep --reuse`` compares them
+    (:func:`~localpbo_core.sweep.effective_settings`, ``known`` its defaults cache), as one
+    string; empty for an unregistered algorithm."""
+    from localpbo_core.sweep import effective_settings
+
+    effective = effective_settings(settings, known)
+    return "" if effective is None else json.dumps(effective, sort_keys=True, default=str)
+
+
+def _cheap_key(algorithm: Any, problem: Any, options: Any, seed: int) -> str:
+    """What a run's settings must share with a stored run's to be the same run, read without
+    resolving them: algorithm, problem, its options (a spec's seed placeholder replaced) and
+    seed."""
+    from localpbo_core.experiments.spec import SEED_TOKEN
+
+    options = {k: seed if v == SEED_TOKEN else v for k, v in dict(options or {}).items()}
+    return json.dumps([algorithm, problem, options, seed], sort_keys=True, default=str)
 
 
 def run_cost(run: StoredRun) -> float:
@@ -303,36 +350,51 @@ def _hours(seconds: float) -> str:
 
 def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> list[str]:
     """A table of the core-hours each command of ``plan`` needs (:func:`group_cost` per
-    missing group) and a sentence with the total; nothing when ``plan`` is empty."""
+    missing group, its copies free) and a sentence with the total; nothing when ``plan`` is
+    empty."""
     if not plan:
         return []
     lines = [
         "| command | runs | core-hours | per run, estimated from |",
         "| ---: | ---: | ---: | --- |",
     ]
-    total_runs, total_seconds, unknown = 0, 0.0, 0
+    total_runs, total_seconds, unknown, total_copies = 0, 0.0, 0, 0
     for i, c in enumerate(plan, 1):
-        seconds, cells, n_runs, open_runs = 0.0, [], 0, 0
+        seconds, cells, n_runs, open_runs, computed = 0.0, [], 0, 0, 0
         for g in c.groups:
             name = "/".join(x for x in (g.problem, g.variant, g.algorithm) if x)
-            n = g.runs
-            n_runs += n
+            n = g.runs - g.copies
+            n_runs += g.runs
+            total_copies += g.copies
+            copied = f"{g.copies} copied" if g.copies else ""
+            if not n:
+                cells.append(f"{name}: {copied}")
+                continue
+            computed += n
             cost = group_cost(runs, g)
             if cost is None:
                 open_runs += n
-                cells.append(f"{name}: no stored run to estimate from")
+                cells.append(
+                    f"{name}: {copied}{', ' if copied else ''}no stored run to estimate from"
+                )
                 continue
             seconds += n * cost[0]
-            cells.append(f"{name}: {cost[0] / 60:.3g} min ({cost[1]})")
-        hours = "?" if open_runs == n_runs else _hours(seconds) + (" + ?" if open_runs else "")
+            cells.append(
+                f"{name}: {copied}{', ' if copied else ''}{cost[0] / 60:.3g} min ({cost[1]})"
+            )
+        if computed and open_runs == computed:
+            hours = "?"
+        else:
+            hours = _hours(seconds) + (" + ?" if open_runs else "")
         lines.append(f"| {i} | {n_runs} | {hours} | {'; '.join(cells)} |")
         total_runs += n_runs
         total_seconds += seconds
         unknown += open_runs
     rest = f", besides {unknown} runs with nothing stored to estimate from" if unknown else ""
+    of = f" ({total_copies} of them copies, which cost nothing)" if total_copies else ""
     lines += [
         "",
-        f"In all {total_runs} runs, about {_hours(total_seconds)} core-hours{rest}: one "
+        f"In all {total_runs} runs{of}, about {_hours(total_seconds)} core-hours{rest}: one "
         "run uses one core, so a machine or cluster with c free cores needs about 1/c of that "
         "in wall time. The estimates come from stored runs of other days and loads, and where "
         "runs did not record CPU seconds their optimizer seconds stand in, which leave out the "
