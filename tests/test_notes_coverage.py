@@ -84,6 +84,57 @@ def test_out_of_model_sobol_and_glisp_are_the_within_model_runs() -> None:
     assert pairs >= low  # and every pair at d = 64, 96 stored so far
 
 
+def test_notes_state_which_gp_runs_are_copies() -> None:
+    """notes: of the GP paths' Sobol and GLISp runs, 65 GLISp runs are copies made by
+    ``--reuse`` (out of model at d <= 32, within model at d = 96) and every other one was
+    computed."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    assert (
+        "65 GLISp runs were copied, those out of model at d ≤ 32 and 5 within model at d = 96; "
+        "the other GLISp runs and every Sobol run were computed in both settings" in notes
+    )
+    copies: dict[tuple[str, str, int], int] = defaultdict(int)
+    for spec in ("gp_within", "gp_out_of_model"):
+        for path in sorted((RESULTS / spec / "runs").glob("gp*.json.gz")):
+            problem, algorithm = path.name.split("__")[:2]
+            if algorithm not in ("sobol", "glisp"):
+                continue
+            doc = read_run(path)
+            if (doc.get("run") or {}).get("reused_from"):
+                copies[(spec, algorithm, int(problem[2:].split("_")[0]))] += 1
+    assert sum(copies.values()) == 65
+    assert {k: v for k, v in copies.items() if k[0] == "gp_within"} == {
+        ("gp_within", "glisp", 96): 5
+    }
+    assert {k[2] for k in copies if k[0] == "gp_out_of_model"} == {8, 16, 32}
+    assert {k[1] for k in copies} == {"glisp"}
+
+
+def test_notes_state_glisp_time_at_d96() -> None:
+    """notes, "GLISp at high n": the CPU seconds of the d = 96, l = 0.1 GLISp runs in both
+    model settings (twins: the same candidates and answers), the two seeds quoted, and the
+    largest ratio between twins."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    cpu = {
+        spec: [
+            read_run(RESULTS / spec / "runs" / f"gp96_l0.1__glisp__seed{s}.json.gz")["cpu_seconds"]
+            for s in COVERAGE_SEEDS
+        ]
+        for spec in ("gp_out_of_model", "gp_within")
+    }
+    out, within = (np.round(cpu[k]).astype(int) for k in ("gp_out_of_model", "gp_within"))
+    assert (
+        f"took {out.min()}–{out.max()} CPU s out of model and {within.min()}–{within.max()} s "
+        "within model" in notes
+    )
+    for seed in (7, 4):
+        assert f"seed {seed}: {out[seed]} and {within[seed]} s" in notes
+    ratio = max(
+        max(a / b, b / a) for a, b in zip(cpu["gp_out_of_model"], cpu["gp_within"], strict=True)
+    )
+    assert f"the gap between twins, up to {ratio:.1f}x," in notes
+
+
 def test_reproducing_counts_the_runs_of_each_spec() -> None:
     """docs/reproducing.md's table: the runs of each spec it lists (every spec of the paper's
     experiments among them) at the spec's seeds."""
