@@ -718,8 +718,8 @@ def write_report(
         "hyperparameters, of the other model setting); the sweep copies those instead of "
         "computing them, and the costs below count them as free. A command started with "
         "`--in-process` in several shells splits its runs between them (a sweep claims each "
-        "run before computing it), and "
-        "`--time-limit 3h` starts no run that would end after the limit.",
+        "run before computing it), and `--time-limit 3h` starts no run that would end after "
+        "the limit.",
         "",
         "```",
         *(c.command for c in plan),

@@ -217,18 +217,14 @@ def completion_plan(
             donors: dict[tuple[str, str, str], set[str]] = {}
             for p, v, a in itertools.product(ps, sorted(vs), algs):
                 for seed in sorted(wanted - seeds.get((spec.name, p, v, a), set())):
-                    near = candidates.get(
-                        _cheap_key(kinds[a], entries[p].name, entries[p].options, seed), []
-                    )
-                    if not any(r.spec != spec.name for r in near):
+                    cheap = _cheap_key(kinds[a], entries[p].name, entries[p].options, seed)
+                    near = [r for r in candidates.get(cheap, []) if r.spec != spec.name]
+                    if not near:
                         continue  # no stored run to compare with: resolving may build the problem
                     planned = spec.runs([p], [a], [v], [seed])  # empty: not a seed of spec
                     keys = {_settings_key(settings_document(r.settings), known) for r in planned}
-                    found = {
-                        r.spec
-                        for r in near
-                        if r.spec != spec.name and _settings_key(r.settings, known) in keys - {""}
-                    }
+                    keys.discard("")
+                    found = {r.spec for r in near if _settings_key(r.settings, known) in keys}
                     if not found:
                         continue
                     donors.setdefault((p, v, a), set()).update(found)
@@ -366,22 +362,18 @@ def completion_costs(runs: Sequence[StoredRun], plan: Sequence[Completion]) -> l
             n = g.runs - g.copies
             n_runs += g.runs
             total_copies += g.copies
-            copied = f"{g.copies} copied" if g.copies else ""
             if not n:
-                cells.append(f"{name}: {copied}")
+                cells.append(f"{name}: {g.copies} copied")
                 continue
+            head = f"{name}: {g.copies} copied, " if g.copies else f"{name}: "
             computed += n
             cost = group_cost(runs, g)
             if cost is None:
                 open_runs += n
-                cells.append(
-                    f"{name}: {copied}{', ' if copied else ''}no stored run to estimate from"
-                )
+                cells.append(head + "no stored run to estimate from")
                 continue
             seconds += n * cost[0]
-            cells.append(
-                f"{name}: {copied}{', ' if copied else ''}{cost[0] / 60:.3g} min ({cost[1]})"
-            )
+            cells.append(head + f"{cost[0] / 60:.3g} min ({cost[1]})")
         if computed and open_runs == computed:
             hours = "?"
         else:
