@@ -702,3 +702,119 @@ def test_notes_state_what_the_last_levy32_gipbo_reruns_changed() -> None:
     assert max(b["first_gap"] for b in blocks) < 1.5e-9
     assert "`synthetic` and `beyond_local_steps` (20 runs)" in notes
     assert "its first 34 candidates bit for bit, parting at the 35th by at most 1.4e-9" in notes
+
+
+def _seeds_named(text: str) -> list[int]:
+    """``"0, 1 and 2"`` -> ``[0, 1, 2]``."""
+    return [int(s) for s in re.split(r", | and ", text)]
+
+
+def test_notes_state_glisp_time_on_walker2d() -> None:
+    """notes, "GLISp at high n": the Walker2d warm-start GLISp runs of the seeds the sentence
+    names (all stored) in CPU seconds, the decision after the warm start (glis's first
+    recalibration), the mean of the later decisions, and the seeds that are fastest and
+    slowest in both."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    found = re.search(
+        r"the stored warm-start runs of seeds ([\d, and]+?) took (\d+)–(\d+) CPU s", notes
+    )
+    assert found, "the Walker2d GLISp sentence is missing"
+    seeds = _seeds_named(found.group(1))
+    runs = [
+        read_run(RESULTS / "policy_warm_start" / "runs" / f"walker2d__glisp__seed{s}.json.gz")
+        for s in seeds
+    ]
+    cpu = np.array([run["cpu_seconds"] for run in runs])
+    assert (int(found.group(2)), int(found.group(3))) == (round(cpu.min()), round(cpu.max()))
+    warm = runs[0]["settings"]["initial_design"]
+    assert all(run["settings"]["initial_design"] == warm for run in runs)
+    assert f"{warm} of them the warm start" in notes
+    first = np.array([run["records"][warm]["decision_seconds"] for run in runs])
+    later = np.array(
+        [np.mean([r["decision_seconds"] for r in run["records"][warm + 1 :]]) for run in runs]
+    )
+    assert (
+        f"took {first.min():.0f}–{first.max():.0f} s and the later decisions "
+        f"{later.min():.2f}–{later.max():.2f} s on average" in notes
+    )
+    for order in (np.argmin, np.argmax):
+        assert order(cpu) == order(first) == order(later)
+    assert (
+        f"seed {seeds[int(np.argmin(cpu))]} the fastest and seed {seeds[int(np.argmax(cpu))]} "
+        "the slowest in all three" in notes
+    )
+
+
+def _compute_rows() -> list[list[str]]:
+    """The cells of the page's compute table (docs/RESULTS.md)."""
+    lines = (ROOT / "docs" / "RESULTS.md").read_text().splitlines()
+    head = next(
+        k
+        for k, line in enumerate(lines)
+        if line.startswith("| spec | problem | algorithm | runs | optimizer s/run |")
+    )
+    rows = []
+    for line in lines[head + 2 :]:
+        if not line.startswith("|"):
+            break
+        rows.append([cell.strip() for cell in line.strip("|").split("|")])
+    return rows
+
+
+def _dimension(problem: str) -> int | None:
+    """d of a GP or synthetic problem label (``gp64_l0.1``, ``levy32``); None for a policy."""
+    found = re.match(r"gp(\d+)_", problem) or re.search(r"(\d+)$", problem)
+    return int(found.group(1)) if found else None
+
+
+def test_notes_state_compute_against_the_paper() -> None:
+    """notes, "Compute": GLISp's ours / paper time by size, the other groups slower than the
+    paper's (each named with its ratio) and Walker2d's ratios, all from the compute table."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    rows = [r for r in _compute_rows() if r[7]]
+    ratio = {(r[0], r[1], r[2]): float(r[7].rstrip("x")) for r in rows}
+    glisp = {k: 1 / v for k, v in ratio.items() if k[2] == "glisp"}
+    small = [v for k, v in glisp.items() if (_dimension(k[1]) or 99) <= 32]
+    large = [v for k, v in glisp.items() if (_dimension(k[1]) or 0) >= 64]
+    hopper = glisp[("policy_warm_start", "hopper", "glisp")]
+    assert (
+        f"GLISp takes {min(small):.2g}–{max(small):.2g}x the paper's times at d ≤ 32, "
+        f"{min(large):.2g}–{max(large):.2g}x at d ≥ 64 and {hopper:.2g}x on Hopper" in notes
+    )
+    assert f"({min(small):.2g}–{max(small):.2g}x its figures, compute table)" in notes
+    assert ("policy_warm_start", "walker2d", "glisp") not in glisp, (
+        "the compute table has Walker2d's GLISp: add it to the sentence"
+    )
+    slower = [k for k, v in ratio.items() if k[2] != "glisp" and v < 1]
+    assert f"all but {len(slower)} are faster than the paper's" in notes
+    for key in slower:
+        assert f"{' '.join(key)} ({ratio[key]:.3g}x" in notes, key
+    seconds = {(r[0], r[1], r[2]): float(r[4].split(" ")[0]) for r in _compute_rows()}
+    assert (
+        f"{seconds[('gp_out_of_model', 'gp64_l0.5', 'sobol')]:.2g} s per run as stored, against "
+        f"{seconds[('gp_out_of_model', 'gp64_l0.1', 'sobol')]:.2g} s on the ℓ = 0.1" in notes
+    )
+    names = {"gipbor": "GIPBOr", "prefsqp": "PrefSQP", "qeubo": "qEUBO", "sobol": "Sobol"}
+    names["turpbo"] = "TuRPBO"
+    walker = {k[2]: v for k, v in ratio.items() if k[:2] == ("policy_warm_start", "walker2d")}
+    assert set(walker) == set(names)
+    told = ", ".join(f"{names[a]} {walker[a]:.3g}x" for a in sorted(walker)[:-1])
+    last = sorted(walker)[-1]
+    assert f"ratios are {told} and {names[last]} {walker[last]:.3g}x." in notes
+
+
+def test_notes_state_the_qeubo_times_at_d32() -> None:
+    """notes, "Compute": the stored optimizer seconds of qEUBO on the 32-D l = 0.5 paths within
+    model, seeds 0-5 and 6-9 (two code versions)."""
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    runs = [
+        read_run(RESULTS / "gp_within" / "runs" / f"gp32_l0.5__qeubo__seed{s}.json.gz")
+        for s in COVERAGE_SEEDS
+    ]
+    secs = np.array([run["optimizer_seconds"] for run in runs])
+    assert [bool(run.get("code")) for run in runs] == [True] * 6 + [False] * 4
+    new, old = np.round(secs[:6]).astype(int), np.round(secs[6:]).astype(int)
+    assert (
+        f"seeds 0–5 took {new.min()}–{new.max()} s as stored and seeds 6–9, stored by older "
+        f"code, {old.min()}–{old.max()} s" in notes
+    )
