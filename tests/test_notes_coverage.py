@@ -711,15 +711,20 @@ def _seeds_named(text: str) -> list[int]:
 
 def test_notes_state_glisp_time_on_walker2d() -> None:
     """notes, "GLISp at high n": the Walker2d warm-start GLISp runs of the seeds the sentence
-    names (all stored) in CPU seconds, the decision after the warm start (glis's first
-    recalibration), the mean of the later decisions, and the seeds that are fastest and
-    slowest in both."""
+    names, which are every stored seed, in CPU seconds, the decision after the warm start
+    (glis's first recalibration), the mean of the later decisions, and the seeds that are
+    fastest and slowest in all three."""
     notes = " ".join((RESULTS / "notes.md").read_text().split())
     found = re.search(
         r"the stored warm-start runs of seeds ([\d, and]+?) took (\d+)–(\d+) CPU s", notes
     )
     assert found, "the Walker2d GLISp sentence is missing"
     seeds = _seeds_named(found.group(1))
+    stored = sorted(
+        int(path.name.split("seed")[1].split(".")[0])
+        for path in (RESULTS / "policy_warm_start" / "runs").glob("walker2d__glisp__seed*.json.gz")
+    )
+    assert sorted(seeds) == stored, f"the sentence names seeds {seeds}, stored are {stored}"
     runs = [
         read_run(RESULTS / "policy_warm_start" / "runs" / f"walker2d__glisp__seed{s}.json.gz")
         for s in seeds
