@@ -17,6 +17,11 @@ simplex iterations. Prints per θ the mean iterations and seconds of those progr
 run the estimated recalibration (mean seconds × 510 per θ, summed) next to the stored first
 decision. Seconds are this machine's under whatever else runs on it; iterations are not.
 
+A later decision fits one program of all samples so far with the chosen θ. ``--later N``
+(default 1021, the middle of the run) builds the program of step N from the stored
+candidates (mapped back to the unit cube, so to rounding) and answers, and fits it from
+scratch with every θ; printed next to the stored decisions' mean seconds around step N.
+
 A script, not a test: it prints figures and asserts nothing about them.
 """
 
@@ -104,14 +109,24 @@ def keep_first_recalibration(
     )
 
 
+def _plan(seed: int) -> Any:
+    from localpbo_core.experiments import load_spec
+
+    run_id = f"walker2d__glisp__seed{seed}"
+    return next(p for p in load_spec("policy_warm_start").runs() if p.run_id == run_id)
+
+
+def replay_settings(seed: int) -> Any:
+    """The settings of ``walker2d__glisp__seed<seed>`` of ``policy_warm_start``."""
+    return _plan(seed).settings
+
+
 def replay_stored(seed: int) -> Callable[[], object]:
     """The plan of ``walker2d__glisp__seed<seed>`` of ``policy_warm_start``, made again as
     ``localpbo sweep`` makes it."""
-    from localpbo_core.experiments import load_spec
     from localpbo_core.sweep import execute_run
 
-    run_id = f"walker2d__glisp__seed{seed}"
-    plan = next(p for p in load_spec("policy_warm_start").runs() if p.run_id == run_id)
+    plan = _plan(seed)
     return lambda: execute_run(plan)
 
 
@@ -180,6 +195,45 @@ def measure(recal: Recalibration, stride: int) -> list[tuple[float, float, float
     return out
 
 
+def later_program(
+    doc: dict[str, Any], n: int, to_unit: Callable[[np.ndarray], np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """glis's scaled samples (``[-1, 1]^d``), comparisons ``[better, worse]`` and best sample
+    of step ``n`` of a stored king-of-the-hill run (decisive answers only), its candidates
+    mapped to the unit cube by ``to_unit``."""
+    unit = np.array([to_unit(np.asarray(c["native"])) for c in doc["candidates"][:n]])
+    pairs = stored_comparisons(doc, n - 1)
+    prefs = np.array(sorted(pairs, key=max), dtype=np.intp).reshape(-1, 2)
+    best = int(prefs[-1, 0]) if len(prefs) else 0
+    return 2.0 * unit - 1.0, prefs, best
+
+
+def stored_to_unit(seed: int) -> Callable[[np.ndarray], np.ndarray]:
+    """The unit-cube point of a stored Walker2d policy's weights."""
+    from localpbo_core.session import Session
+
+    problem: Any = Session(replay_settings(seed)).problem
+    return lambda native: np.asarray(problem.theta_from_weights(native).theta)
+
+
+def later_fits(
+    Xs: np.ndarray, prefs: np.ndarray, best: int, thetas: np.ndarray, sepvalue: float
+) -> list[tuple[float, int, float]]:
+    """Per θ: HiGHS's simplex iterations and CPU seconds of the fit of all of ``Xs`` from
+    scratch (glis's inverse-quadratic RBF with ε = θ)."""
+    distances = np.sum((Xs[:, None, :] - Xs[None, :, :]) ** 2, axis=-1)
+    no_ties = np.zeros((0, 2), dtype=np.intp)
+    out = []
+    for theta in thetas:
+        M = 1.0 / (1.0 + theta**2 * distances)
+        with counted_iterations() as counts:
+            start = time.process_time()
+            glisp_lp.rbf_weights(M, len(Xs), prefs, no_ties, best, sepvalue)
+            seconds = time.process_time() - start
+        out.append((float(theta), sum(counts), seconds))
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m localpbo_core.benchmarks.glisp_recalibration",
@@ -190,6 +244,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--stride", type=int, default=51, help="solve every STRIDE-th leave-one-out program"
+    )
+    parser.add_argument(
+        "--later", type=int, default=1021, help="also fit step LATER's program; 0: not"
     )
     args = parser.parse_args(argv)
     from localpbo_core.sweep import read_run
@@ -216,6 +273,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         estimate = sum(seconds for _, _, seconds in rows) * per_theta
         first = float(doc["records"][recal.matrices[0].shape[0]]["decision_seconds"])
         summary.append((seed, float(np.mean([r[1] for r in rows])), estimate, first))
+        if args.later:
+            Xs, prefs, best = later_program(doc, args.later, stored_to_unit(seed))
+            fits = later_fits(Xs, prefs, best, recal.thetas, recal.sepvalue)
+            around = doc["records"][args.later - 20 : args.later + 20]
+            stored_later = float(np.mean([r["decision_seconds"] for r in around]))
+            print(
+                f"  step {args.later}, fitted from scratch (stored decisions there: "
+                f"{stored_later:.2f} s)"
+            )
+            print(f"  {'theta':>7} {'iterations':>11} {'s/program':>10}")
+            for theta, iterations, seconds in fits:
+                print(f"  {theta:>7.3f} {iterations:>11} {seconds:>10.3f}")
     print(f"\n{'seed':>4} {'iterations':>11} {'estimate s':>11} {'stored s':>9} {'ratio':>6}")
     for seed, iterations, estimate, first in summary:
         print(
