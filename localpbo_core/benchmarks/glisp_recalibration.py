@@ -87,9 +87,8 @@ def keep_first_recalibration(
 
     glisp._fit_rbf_weights = record
     try:
-        replay()
-    except _Stop:
-        pass
+        with contextlib.suppress(_Stop):
+            replay()
     finally:
         glisp._fit_rbf_weights = real
     if "owner" not in kept:
@@ -109,24 +108,18 @@ def keep_first_recalibration(
     )
 
 
-def _plan(seed: int) -> Any:
+def stored_plan(seed: int) -> Any:
+    """The plan of ``walker2d__glisp__seed<seed>`` of ``policy_warm_start``."""
     from localpbo_core.experiments import load_spec
 
     run_id = f"walker2d__glisp__seed{seed}"
     return next(p for p in load_spec("policy_warm_start").runs() if p.run_id == run_id)
 
 
-def replay_settings(seed: int) -> Any:
-    """The settings of ``walker2d__glisp__seed<seed>`` of ``policy_warm_start``."""
-    return _plan(seed).settings
-
-
-def replay_stored(seed: int) -> Callable[[], object]:
-    """The plan of ``walker2d__glisp__seed<seed>`` of ``policy_warm_start``, made again as
-    ``localpbo sweep`` makes it."""
+def replay_stored(plan: Any) -> Callable[[], object]:
+    """``plan`` made again as ``localpbo sweep`` makes it."""
     from localpbo_core.sweep import execute_run
 
-    plan = _plan(seed)
     return lambda: execute_run(plan)
 
 
@@ -208,11 +201,11 @@ def later_program(
     return 2.0 * unit - 1.0, prefs, best
 
 
-def stored_to_unit(seed: int) -> Callable[[np.ndarray], np.ndarray]:
-    """The unit-cube point of a stored Walker2d policy's weights."""
+def stored_to_unit(plan: Any) -> Callable[[np.ndarray], np.ndarray]:
+    """The unit-cube point of a stored Walker2d policy's weights (``plan``'s task)."""
     from localpbo_core.session import Session
 
-    problem: Any = Session(replay_settings(seed)).problem
+    problem: Any = Session(plan.settings).problem
     return lambda native: np.asarray(problem.theta_from_weights(native).theta)
 
 
@@ -257,7 +250,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     summary = []
     for seed in seeds:
         doc = read_run(stored[seed])
-        recal = keep_first_recalibration(replay_stored(seed))
+        plan = stored_plan(seed)
+        recal = keep_first_recalibration(replay_stored(plan))
         same = stored_comparisons(doc, len(recal.prefs)) == {
             (int(a), int(b)) for a, b in recal.prefs
         }
@@ -274,7 +268,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         first = float(doc["records"][recal.matrices[0].shape[0]]["decision_seconds"])
         summary.append((seed, float(np.mean([r[1] for r in rows])), estimate, first))
         if args.later:
-            Xs, prefs, best = later_program(doc, args.later, stored_to_unit(seed))
+            Xs, prefs, best = later_program(doc, args.later, stored_to_unit(plan))
             fits = later_fits(Xs, prefs, best, recal.thetas, recal.sepvalue)
             around = doc["records"][args.later - 20 : args.later + 20]
             stored_later = float(np.mean([r["decision_seconds"] for r in around]))
