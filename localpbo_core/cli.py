@@ -172,6 +172,13 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         help="e.g. 5400, 90m, 1h30m: start no run that its group's longest stored run says "
         "would end later, and stop the runs still under way at the limit",
     )
+    sweep.add_argument(
+        "--times-from",
+        action="append",
+        metavar="DIR",
+        help="for --time-limit, a group with no stored run here takes the longest of the same "
+        "runs stored in DIR (repeatable)",
+    )
     sweep.add_argument("--problems", default=None, help="comma-separated problem labels")
     sweep.add_argument("--algorithms", default=None, help="comma-separated algorithm labels")
     sweep.add_argument("--variants", default=None, help="comma-separated variant labels")

@@ -34,7 +34,10 @@
   summary; what finished is stored, and the same command continues.
 * **Time limit** (``--time-limit 90m``; e.g. a batch job's wall time): a run is not started
   when the longest run of its group (problem, algorithm, variant) stored in ``OUT`` says it
-  would end after the limit (:class:`RunTimes`; a group with no measured run starts); at
+  would end after the limit (:class:`RunTimes`); a group with no measured run in ``OUT``
+  takes the longest of the same run ids in the folders named by ``--times-from DIR``
+  (repeatable; e.g. the spec that ran the same problem and algorithm under other settings),
+  and with none there either it starts. At
   the limit the runs still under way stop as on SIGTERM (exit 130), so the limit holds
   either way, and the same command continues. Ray sweeps keep at most as many runs
   submitted as the cluster has CPUs, submitting the next as one ends, so both rules apply
@@ -388,6 +391,7 @@ def sweep(
     reuse: Sequence[Path] = (),
     rerun_changed: bool = False,
     time_limit: float | None = None,
+    times_from: Sequence[Path] = (),
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -412,6 +416,8 @@ def sweep(
             later (it is left, in ``pending`` and ``over_time``); with ``stop_on_sigterm``
             the runs still under way at the limit are stopped as by SIGTERM
             (``time_limit_reached``).
+        times_from: folders of other sweeps whose measured runs stand in for a group with
+            none in ``out`` (:class:`RunTimes`), for ``time_limit``.
 
     Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
     stops the runs under way and returns with ``interrupted`` set; every run finished before
@@ -459,7 +465,7 @@ def sweep(
     held: dict[str, Claim] = {}
     started: list[PlannedRun] = []
     queue = iter(todo)
-    times = RunTimes(out) if time_limit is not None else None
+    times = RunTimes(out, times_from) if time_limit is not None else None
     deadline = None if time_limit is None else began + time_limit
 
     def passed_over() -> None:
@@ -563,11 +569,14 @@ class RunTimes:
     when the longest stored run of its group would not end before the limit.
 
     A group's files are read once (their ``run_seconds``; copies made by ``--reuse`` and runs
-    without a measured time are passed over); runs this sweep finishes are added."""
+    without a measured time are passed over); runs this sweep finishes are added. A group
+    with no measured run in ``out`` takes the measured runs of the same group in ``others``
+    (``--times-from``), all of them together, until this sweep finishes one of its own."""
 
-    def __init__(self, out: Path) -> None:
+    def __init__(self, out: Path, others: Sequence[Path] = ()) -> None:
         self.out = out
         self._seconds: dict[str, list[float]] = {}
+        self._others = [RunTimes(folder) for folder in others]
 
     @staticmethod
     def group(run_id: str) -> str:
@@ -576,7 +585,7 @@ class RunTimes:
 
     def _group_seconds(self, group: str) -> list[float]:
         if group not in self._seconds:
-            seconds = []
+            seconds: list[float] = []
             for path in sorted((self.out / "runs").glob(f"{group}__seed*{RUN_SUFFIX}")):
                 if self.group(path.name[: -len(RUN_SUFFIX)]) != group:
                     continue
@@ -598,8 +607,12 @@ class RunTimes:
         return float(value) if value > 0 else None
 
     def longest(self, plan: PlannedRun) -> float | None:
-        """The longest wall time of ``plan``'s group's runs (None: none measured)."""
-        seconds = self._group_seconds(self.group(plan.run_id))
+        """The longest wall time of ``plan``'s group's runs, else of the same group's runs in
+        the other folders (None: none measured anywhere)."""
+        group = self.group(plan.run_id)
+        seconds = self._group_seconds(group)
+        if not seconds:
+            seconds = [s for other in self._others for s in other._group_seconds(group)]
         return max(seconds) if seconds else None
 
     def add(self, plan: PlannedRun, doc: dict[str, Any]) -> None:
@@ -878,9 +891,13 @@ def main_sweep(args: Any) -> int:
     )
     out = Path(args.out)
     reuse = [Path(folder) for folder in args.reuse or ()]
-    for folder in reuse:
-        if not folder.is_dir():
-            raise SettingError("--reuse", f"{folder} is not a folder")
+    times_from = [Path(folder) for folder in args.times_from or ()]
+    for name, folders in (("--reuse", reuse), ("--times-from", times_from)):
+        for folder in folders:
+            if not folder.is_dir():
+                raise SettingError(name, f"{folder} is not a folder")
+    if times_from and args.time_limit is None:
+        raise SettingError("--times-from", "only --time-limit reads it; give one")
     if args.dry_run:
         print(format_dry_run(out, plans, args.max_runs, reuse, args.rerun_changed))
         return 0
@@ -902,6 +919,7 @@ def main_sweep(args: Any) -> int:
         reuse=reuse,
         rerun_changed=args.rerun_changed,
         time_limit=time_limit,
+        times_from=times_from,
     )
     reused = f"{len(result.reused)} reused, " if reuse else ""
     rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""

@@ -268,6 +268,53 @@ def test_a_run_that_would_end_after_the_limit_is_not_started(
     assert not list((tmp_path / ".claims").iterdir())
 
 
+def test_a_group_with_no_run_here_takes_the_times_of_another_folder(
+    tiny_spec, tiny_reference, tmp_path
+) -> None:
+    """``--times-from``: the other folder's longest run of the same group stands in until the
+    sweep's own folder has one; a group measured nowhere still starts."""
+    sobol0, sobol1, turpbo0, turpbo1 = tiny_spec.runs()
+    here, elsewhere, third = tmp_path / "here", tmp_path / "elsewhere", tmp_path / "third"
+    _stored_with_seconds(run_path(tiny_reference, turpbo0), run_path(elsewhere, turpbo0), 50.0)
+    _stored_with_seconds(run_path(tiny_reference, turpbo1), run_path(third, turpbo1), 70.0)
+    _stored_with_seconds(run_path(tiny_reference, sobol0), run_path(third, sobol0), 5.0, True)
+    times = RunTimes(here, [elsewhere, third])
+    assert times.longest(turpbo0) == 70.0  # the longest over every other folder
+    assert times.longest(sobol1) is None  # a copy made by --reuse measures nothing
+    assert RunTimes(here).longest(turpbo0) is None
+    times.add(turpbo0, {"run_seconds": 20.0, "run": {}})
+    assert times.longest(turpbo1) == 20.0  # its own run replaces the stand-in
+    _stored_with_seconds(run_path(tiny_reference, turpbo1), run_path(here, turpbo1), 10.0)
+    assert RunTimes(here, [elsewhere, third]).longest(turpbo0) == 10.0
+
+    result = sweep(
+        tiny_spec, here, in_process=True, progress=False, time_limit=60.0, times_from=[third]
+    )
+    assert result.over_time == [] and sorted(result.finished) == sorted(
+        p.run_id for p in (sobol0, sobol1, turpbo0)
+    )
+    fresh = tmp_path / "fresh"
+    result = sweep(
+        tiny_spec, fresh, in_process=True, progress=False, time_limit=60.0, times_from=[third]
+    )
+    assert result.over_time == [turpbo0.run_id, turpbo1.run_id] == result.pending
+    assert sorted(result.finished) == sorted(p.run_id for p in (sobol0, sobol1))
+    assert not list((fresh / ".claims").iterdir())
+
+
+def test_times_from_is_refused_without_a_limit_or_a_folder(tmp_path) -> None:
+    cmd = [sys.executable, "-m", "localpbo_core.cli", "sweep", "tiny", "--out", str(tmp_path)]
+    cmd += ["--in-process", "--no-progress", "--times-from"]
+    done = subprocess.run([*cmd, str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "--times-from: only --time-limit reads it" in done.stderr
+    missing = str(tmp_path / "missing")
+    done = subprocess.run(
+        [*cmd, missing, "--time-limit", "1h"], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2 and f"--times-from: {missing} is not a folder" in done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "runs").exists()
+
+
 @pytest.mark.timeout(900)
 def test_the_time_limit_stops_the_runs_under_way(tmp_path) -> None:
     """A limit shorter than one run: the sweep stops it as on SIGTERM (exit 130), stores
