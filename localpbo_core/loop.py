@@ -78,19 +78,31 @@ class RunTrace:
 def run_session(
     session: Session,
     on_evaluation: Callable[[EvaluationRecord], None] | None = None,
+    *,
+    trace: RunTrace | None = None,
+    on_step: Callable[[RunTrace], None] | None = None,
 ) -> RunTrace:
     """Drive ``session`` until its budget is spent; return what the run exchanged.
 
     Args:
-        session: a fresh session (its settings name the problem, algorithm, seed, noise).
+        session: a fresh session (its settings name the problem, algorithm, seed, noise),
+            or, with ``trace``, a session in the state this loop left it in after ``trace``.
         on_evaluation: called with each record as soon as it is complete.
+        trace: what the run exchanged before ``session``'s state (a run continued from a
+            checkpoint, :mod:`localpbo_core.checkpoints`); it is extended in place, and the
+            run goes on as if it had never stopped.
+        on_step: called with the trace after each step that evaluated candidates, when
+            ``session`` is between two steps (the state a checkpoint keeps).
     """
     settings = session.settings
     problem = session.problem
     oracle = session.oracle()
-    trace = RunTrace()
+    trace = RunTrace() if trace is None else trace
     best = -np.inf
     cumulative = 0.0
+    for r in trace.records:  # the sums of the records as this loop made them
+        best = max(best, r.f_true)
+        cumulative += r.f_true
     carry = 0.0  # optimizer time of asks without candidates, charged to the next candidates
     while not session.done:
         t0 = time.perf_counter()
@@ -136,4 +148,6 @@ def run_session(
             trace.records.append(rec)
             if on_evaluation is not None:
                 on_evaluation(rec)
+        if on_step is not None:
+            on_step(trace)
     return trace
