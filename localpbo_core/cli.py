@@ -170,7 +170,8 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="DURATION",
         help="e.g. 5400, 90m, 1h30m: start no run that its group's longest stored run says "
-        "would end later, and stop the runs still under way at the limit",
+        "would end later, unless a checkpoint interval is left, and stop the runs still under "
+        "way at the limit",
     )
     sweep.add_argument(
         "--times-from",
@@ -178,6 +179,18 @@ def _add_sweep_commands(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="for --time-limit, a group with no stored run here takes the longest of the same "
         "runs stored in DIR (repeatable)",
+    )
+    sweep.add_argument(
+        "--checkpoint-every",
+        default="10m",
+        metavar="DURATION",
+        help="write each run's state every DURATION of the run (default 10m), so that a "
+        "stopped run continues from it in the next sweep",
+    )
+    sweep.add_argument(
+        "--no-checkpoints",
+        action="store_true",
+        help="neither write nor continue checkpoints (a stopped run starts again)",
     )
     sweep.add_argument("--problems", default=None, help="comma-separated problem labels")
     sweep.add_argument("--algorithms", default=None, help="comma-separated algorithm labels")

@@ -32,16 +32,28 @@
   ``--seeds`` select a slice; ``--dry-run`` lists the runs and their state. Ctrl-C or
   SIGTERM stops the runs under way (Ray's workers with them) and exits with 130 after the
   summary; what finished is stored, and the same command continues.
+* **Checkpoints** (``--checkpoint-every 10m``, the default; ``--no-checkpoints``): a run
+  under way writes its state to ``OUT/checkpoints/<run_id>.ckpt.gz`` at the first step
+  boundary after every interval of its own time (:mod:`localpbo_core.checkpoints`), and a
+  sweep that claims a run with a checkpoint of the same settings and code continues from it
+  to the trace the uninterrupted run gives, bit for bit; so a stopped run loses at most one
+  interval and a step, and a run longer than any one batch job finishes over several. The
+  stored run's ``run_seconds`` and ``cpu_seconds`` sum every part, and its ``checkpoints``
+  block lists the parts (evaluations, seconds, platform). The checkpoint is removed once
+  the run is stored; one that cannot continue the run (other settings or code, unreadable)
+  is logged and the run starts again. A Ray worker writes the file itself: on a cluster
+  ``OUT`` must be a folder every node reaches at the same path.
 * **Time limit** (``--time-limit 90m``; e.g. a batch job's wall time): a run is not started
   when the longest run of its group (problem, algorithm, variant) stored in ``OUT`` says it
-  would end after the limit (:class:`RunTimes`); a group with no measured run in ``OUT``
+  would end after the limit (:class:`RunTimes`; a run continued from a checkpoint counts
+  the checkpoint's seconds as done), unless checkpoints are on and at least one interval is
+  left, so that its progress is kept; a group with no measured run in ``OUT``
   takes the longest of the same run ids in the folders named by ``--times-from DIR``
   (repeatable; e.g. the spec that ran the same problem and algorithm under other settings),
-  and with none there either it starts. At
-  the limit the runs still under way stop as on SIGTERM (exit 130), so the limit holds
-  either way, and the same command continues. Ray sweeps keep at most as many runs
-  submitted as the cluster has CPUs, submitting the next as one ends, so both rules apply
-  there too.
+  and with none there either it starts. At the limit the runs still under way stop as on
+  SIGTERM (exit 130), so the limit holds either way, and the same command continues (from
+  the runs' checkpoints). Ray sweeps keep at most as many runs submitted as the cluster has
+  CPUs, submitting the next as one ends, so both rules apply there too.
 * **Two sweeps, one folder**: a sweep claims each run before computing it
   (:mod:`localpbo_core.run_claims`: a lock the kernel drops when the sweep ends, however it
   ends) and passes over runs another live sweep holds, listing them as under way there; a
@@ -103,6 +115,10 @@ from localpbo_core.run_claims import CLAIMS_DIR, Claim, Holder, holder, try_clai
 from localpbo_core.settings import SettingError
 
 RUN_SUFFIX = ".json.gz"
+CHECKPOINTS_DIR = "checkpoints"
+CHECKPOINT_EVERY_S = 600.0
+"""Default seconds of a run between two of its checkpoints (``--checkpoint-every``)."""
+_log = logging.getLogger("localpbo.sweep")
 MAX_RETRIES = 3
 """Ray retries of a task whose worker process died (not of a run that raised)."""
 
@@ -125,6 +141,10 @@ class SweepResult:
     elsewhere: dict[str, str] = field(default_factory=dict)
     over_time: list[str] = field(default_factory=list)
     time_limit_reached: bool = False
+    resumed: dict[str, int] = field(default_factory=dict)
+    """Run ids finished now that continued a checkpoint, and its evaluations."""
+    kept: dict[str, int] = field(default_factory=dict)
+    """Pending run ids with a checkpoint for the next sweep, and its evaluations."""
 
 
 def run_path(out: Path, plan: PlannedRun) -> Path:
@@ -132,20 +152,27 @@ def run_path(out: Path, plan: PlannedRun) -> Path:
     return out / "runs" / f"{plan.run_id}{RUN_SUFFIX}"
 
 
-def execute_run(plan: PlannedRun) -> dict[str, Any]:
-    """Run ``plan`` in this process and return its stored document (module docstring)."""
-    from localpbo_core.loop import run_session
+def execute_run(
+    plan: PlannedRun, checkpoint: Path | None = None, every: float = CHECKPOINT_EVERY_S
+) -> dict[str, Any]:
+    """Run ``plan`` in this process and return its stored document (module docstring);
+    with ``checkpoint``, continue from that file if it holds a checkpoint of the run, and
+    write one there every ``every`` seconds (:mod:`localpbo_core.checkpoints`)."""
+    from localpbo_core.checkpoints import CheckpointedRun, CheckpointError
     from localpbo_core.run_documents import trace_document
-    from localpbo_core.session import Session
 
-    wall, cpu = time.perf_counter(), time.process_time()
-    trace = run_session(Session(plan.settings))
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    def discarded(error: CheckpointError) -> None:
+        _log.warning("%s: checkpoint not used, the run starts again: %s", plan.run_id, error)
+
+    done = CheckpointedRun(plan.settings, checkpoint, every, on_discarded=discarded).run()
+    trace = done.trace
     doc = trace_document(plan.settings, trace)
     doc["run"] = plan.describe()
     doc["optimizer_seconds"] = sum(r.decision_seconds for r in trace.records)
-    doc["run_seconds"] = wall
-    doc["cpu_seconds"] = cpu
+    doc["run_seconds"] = done.run_seconds
+    doc["cpu_seconds"] = done.cpu_seconds
+    if done.segments:
+        doc["checkpoints"] = {"segments": done.segments}
     doc["code"] = code_block(plan.settings.algorithm)
     doc["platform"] = platform_block()
     effective = effective_settings(doc["settings"])
@@ -165,14 +192,22 @@ def write_run(path: Path, doc: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
+def checkpoint_path(out: Path, plan: PlannedRun) -> Path:
+    """``OUT/checkpoints/<run_id>.ckpt.gz`` (absolute: a Ray worker writes it)."""
+    from localpbo_core.checkpoints import CHECKPOINT_SUFFIX
+
+    return out.resolve() / CHECKPOINTS_DIR / f"{plan.run_id}{CHECKPOINT_SUFFIX}"
+
+
 def _remove_partial_writes(out: Path, plan: PlannedRun) -> None:
-    """Remove the temporary files of ``plan``'s run left by a writer that was killed while
-    writing (:func:`write_run`). Called by the holder of the run's claim: every write of a
-    run happens under its claim, so no live writer owns them."""
-    final = run_path(out, plan)
-    for tmp in final.parent.glob(f".{final.name}.*.tmp"):
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
+    """Remove the temporary files of ``plan``'s run and checkpoint left by a writer that was
+    killed while writing (:func:`write_run`, :func:`localpbo_core.checkpoints.write_checkpoint`).
+    Called by the holder of the run's claim: every write of a run happens under its claim, so
+    no live writer owns them."""
+    for final in (run_path(out, plan), checkpoint_path(out, plan)):
+        for tmp in final.parent.glob(f".{final.name}.*.tmp"):
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
 
 
 def read_run(path: Path) -> dict[str, Any]:
@@ -392,6 +427,7 @@ def sweep(
     rerun_changed: bool = False,
     time_limit: float | None = None,
     times_from: Sequence[Path] = (),
+    checkpoint_every: float | None = CHECKPOINT_EVERY_S,
 ) -> SweepResult:
     """Run every unfinished run of ``runs`` (default: all of ``spec``) and store each.
 
@@ -418,6 +454,9 @@ def sweep(
             (``time_limit_reached``).
         times_from: folders of other sweeps whose measured runs stand in for a group with
             none in ``out`` (:class:`RunTimes`), for ``time_limit``.
+        checkpoint_every: seconds of a run between its checkpoints
+            (``OUT/checkpoints/<run_id>.ckpt.gz``, module docstring "Checkpoints"); a run
+            with a checkpoint continues from it; None: no checkpoints are written or read.
 
     Interrupted (``KeyboardInterrupt``: Ctrl-C, or SIGTERM with ``stop_on_sigterm``), it
     stops the runs under way and returns with ``interrupted`` set; every run finished before
@@ -467,6 +506,10 @@ def sweep(
     queue = iter(todo)
     times = RunTimes(out, times_from) if time_limit is not None else None
     deadline = None if time_limit is None else began + time_limit
+    every = CHECKPOINT_EVERY_S if checkpoint_every is None else checkpoint_every
+
+    def checkpoint_of(plan: PlannedRun) -> Path | None:
+        return None if checkpoint_every is None else checkpoint_path(out, plan)
 
     def passed_over() -> None:
         passed = len(result.elsewhere) - elsewhere_before + len(result.skipped) - skipped_before
@@ -504,8 +547,13 @@ def sweep(
         if times is not None:
             times.add(plan, doc)  # before the file exists: a group read later counts it once
         write_run(path, doc)
+        with contextlib.suppress(FileNotFoundError):
+            checkpoint_path(out, plan).unlink()  # the run it kept is stored
         release(plan)
         result.finished.append(plan.run_id)
+        segments = (doc.get("checkpoints") or {}).get("segments") or []
+        if segments:
+            result.resumed[plan.run_id] = int(segments[-1]["evaluations"][0]) - 1
         if plan.run_id in stale:
             result.rerun.append(plan.run_id)
         bar.set_postfix_str(plan.run_id, refresh=False)
@@ -526,7 +574,9 @@ def sweep(
                 continue
             if times is not None and deadline is not None:
                 longest = times.longest(plan)
-                if longest is not None and time.monotonic() + longest > deadline:
+                if longest is not None and not _worth_starting(
+                    deadline - time.monotonic(), longest, checkpoint_of(plan), checkpoint_every
+                ):
                     result.pending.append(plan.run_id)
                     result.over_time.append(plan.run_id)
                     continue
@@ -542,13 +592,22 @@ def sweep(
             if in_process:
                 while (run := next_plan()) is not None:
                     try:
-                        doc = execute_run(run)
+                        doc = execute_run(run, checkpoint_of(run), every)
                     except Exception as exc:  # a bug in one run must not stop the sweep
                         fail(run, f"{type(exc).__name__}: {exc}")
                         continue
                     store(run, doc)
             elif (first := next_plan()) is not None:
-                _run_on_ray(first, next_plan, address, workers, store, fail, stop_on_sigterm)
+                _run_on_ray(
+                    first,
+                    next_plan,
+                    address,
+                    workers,
+                    store,
+                    fail,
+                    stop_on_sigterm,
+                    lambda plan: (checkpoint_of(plan), every),
+                )
     except KeyboardInterrupt:
         settled = set(result.finished) | set(result.failed) | set(result.skipped)
         settled |= set(result.elsewhere) | set(result.pending)
@@ -560,7 +619,41 @@ def sweep(
         for got in held.values():
             got.release()
         bar.close()
+    for plan in todo:
+        path = checkpoint_of(plan)
+        if plan.run_id in result.pending and path is not None and path.exists():
+            evaluations = checkpoint_evaluations(path)
+            if evaluations is not None:
+                result.kept[plan.run_id] = evaluations
     return result
+
+
+def checkpoint_evaluations(path: Path) -> int | None:
+    """The evaluations done in the checkpoint at ``path`` (None: none readable there)."""
+    from localpbo_core.checkpoints import CheckpointError, read_header
+
+    try:
+        return int(read_header(path)["evaluations"])
+    except (CheckpointError, KeyError, TypeError, ValueError):
+        return None
+
+
+def _worth_starting(
+    left: float, longest: float, checkpoint: Path | None, checkpoint_every: float | None
+) -> bool:
+    """Start a run with ``left`` seconds to the time limit, its group's longest run taking
+    ``longest``? Yes if what is left of it fits (a run continued from its checkpoint has the
+    checkpoint's seconds behind it); else, with checkpoints, yes if at least one checkpoint
+    interval is left, since its progress is then kept for the next sweep."""
+    behind = 0.0
+    if checkpoint is not None and checkpoint.exists():
+        from localpbo_core.checkpoints import CheckpointError, read_header
+
+        with contextlib.suppress(CheckpointError, KeyError, TypeError, ValueError):
+            behind = max(0.0, float(read_header(checkpoint)["run_seconds"]))
+    if longest - behind <= left:
+        return True
+    return checkpoint_every is not None and left >= checkpoint_every
 
 
 class RunTimes:
@@ -650,11 +743,11 @@ def _hard_stop(deadline: float | None, result: SweepResult) -> Iterator[None]:
         timer.cancel()
 
 
-def parse_duration(text: str) -> float:
+def parse_duration(text: str, field: str = "--time-limit") -> float:
     """Seconds in ``"5400"``, ``"90m"``, ``"1h30m"``, ``"2h"``, ``"45s"`` or ``"1d"``.
 
     Raises:
-        SettingError: field ``--time-limit``.
+        SettingError: naming ``field``.
     """
     units = {"d": 86400.0, "h": 3600.0, "m": 60.0, "s": 1.0, "": 1.0}
     parts = re.fullmatch(r"(?:\d+(?:\.\d+)?[dhms]?)+", text.strip())
@@ -664,7 +757,7 @@ def parse_duration(text: str) -> float:
             total += float(number) * units[unit]
     if not parts or total <= 0:
         raise SettingError(
-            "--time-limit", f"expected a positive duration such as 5400, 90m or 1h30m, got {text!r}"
+            field, f"expected a positive duration such as 5400, 90m or 1h30m, got {text!r}"
         )
     return total
 
@@ -757,6 +850,7 @@ def _run_on_ray(
     store: Callable[[PlannedRun, dict[str, Any]], None],
     fail: Callable[[PlannedRun, str], None],
     stop_on_sigterm: bool,
+    checkpointing: Callable[[PlannedRun], tuple[Path | None, float]],
 ) -> None:
     with _stops_deferred(stop_on_sigterm) as stopped:
         try:
@@ -776,10 +870,10 @@ def _run_on_ray(
         with _sigterm_interrupts(stop_on_sigterm):
             task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(execute_run)
             slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
-            refs = {task.remote(first): first}
+            refs = {task.remote(first, *checkpointing(first)): first}
             while refs:
                 while len(refs) < slots and (plan := next_plan()) is not None:
-                    refs[task.remote(plan)] = plan
+                    refs[task.remote(plan, *checkpointing(plan))] = plan
                 done, _ = ray.wait(list(refs), num_returns=1)
                 for ref in done:
                     plan = refs.pop(ref)
@@ -822,9 +916,11 @@ def format_dry_run(
     max_runs: int | None,
     reuse: Sequence[Path] = (),
     rerun_changed: bool = False,
+    checkpoints: bool = True,
 ) -> str:
     """One line per run: its id, state (finished / reuse / will run / will rerun / under way
-    in another sweep / left for later) and budget."""
+    in another sweep / left for later) and budget; a run that will continue a checkpoint
+    (unless ``checkpoints`` is False) says from how many evaluations."""
     lines = [f"{'run':<48} {'state':<10} {'budget':>7} {'init':>5}"]
     counts = dict.fromkeys(("finished", "reuse", "will run", "will rerun", "under way", "later"), 0)
     if not reuse:
@@ -848,7 +944,11 @@ def format_dry_run(
             state = "later"
         counts[state] += 1
         budget = "default" if plan.settings.budget is None else str(plan.settings.budget)
-        lines.append(f"{plan.run_id:<48} {state:<10} {budget:>7} {plan.settings.initial_design:>5}")
+        line = f"{plan.run_id:<48} {state:<10} {budget:>7} {plan.settings.initial_design:>5}"
+        if checkpoints and state.startswith("will"):
+            done = checkpoint_evaluations(checkpoint_path(out, plan))
+            line += "" if done is None else f"  (continues its checkpoint at {done})"
+        lines.append(line)
     if not counts["under way"]:
         del counts["under way"]
     lines.append(", ".join(f"{n} {k}" for k, n in counts.items()) + f" ({len(plans)} runs)")
@@ -898,8 +998,13 @@ def main_sweep(args: Any) -> int:
                 raise SettingError(name, f"{folder} is not a folder")
     if times_from and args.time_limit is None:
         raise SettingError("--times-from", "only --time-limit reads it; give one")
+    every = parse_duration(args.checkpoint_every, "--checkpoint-every")
     if args.dry_run:
-        print(format_dry_run(out, plans, args.max_runs, reuse, args.rerun_changed))
+        print(
+            format_dry_run(
+                out, plans, args.max_runs, reuse, args.rerun_changed, not args.no_checkpoints
+            )
+        )
         return 0
     time_limit = None if args.time_limit is None else parse_duration(args.time_limit)
     check_writable(out)
@@ -920,6 +1025,7 @@ def main_sweep(args: Any) -> int:
         rerun_changed=args.rerun_changed,
         time_limit=time_limit,
         times_from=times_from,
+        checkpoint_every=None if args.no_checkpoints else every,
     )
     reused = f"{len(result.reused)} reused, " if reuse else ""
     rerun = f" ({len(result.rerun)} of them rerun)" if args.rerun_changed else ""
@@ -939,6 +1045,10 @@ def main_sweep(args: Any) -> int:
             f"not started, would end after --time-limit {args.time_limit}: "
             + ", ".join(result.over_time)
         )
+    for run_id, evaluations in sorted(result.resumed.items()):
+        print(f"CONTINUED {run_id}: from its checkpoint at {evaluations} evaluations")
+    for run_id, evaluations in sorted(result.kept.items()):
+        print(f"CHECKPOINT {run_id}: {evaluations} evaluations kept; the same command continues")
     if result.time_limit_reached and result.interrupted:
         print(f"--time-limit {args.time_limit} reached: the runs under way were stopped")
     if result.interrupted:

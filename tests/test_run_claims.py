@@ -260,12 +260,20 @@ def test_a_run_that_would_end_after_the_limit_is_not_started(
 ) -> None:
     plans = tiny_spec.runs()
     _stored_with_seconds(run_path(tiny_reference, plans[2]), run_path(tmp_path, plans[2]), 7200.0)
-    result = sweep(tiny_spec, tmp_path, in_process=True, progress=False, time_limit=3600.0)
+    result = sweep(
+        tiny_spec, tmp_path, in_process=True, progress=False, time_limit=3600.0,
+        checkpoint_every=None,
+    )  # fmt: skip
     assert result.over_time == [plans[3].run_id] == result.pending
     assert sorted(result.finished) == sorted(p.run_id for p in plans[:2])
     assert not result.interrupted and not result.time_limit_reached
     assert not run_path(tmp_path, plans[3]).exists()
     assert not list((tmp_path / ".claims").iterdir())
+    # with checkpoints (the default) it starts when one interval is left: its progress is kept
+    held = sweep(tiny_spec, tmp_path, in_process=True, progress=False, time_limit=500.0)
+    assert held.over_time == [plans[3].run_id]
+    started = sweep(tiny_spec, tmp_path, in_process=True, progress=False, time_limit=3600.0)
+    assert started.finished == [plans[3].run_id] and started.over_time == []
 
 
 def test_a_group_with_no_run_here_takes_the_times_of_another_folder(
