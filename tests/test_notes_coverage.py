@@ -742,12 +742,18 @@ def test_notes_state_glisp_time_on_walker2d() -> None:
         f"took {first.min():.0f}–{first.max():.0f} s and the later decisions "
         f"{later.min():.2f}–{later.max():.2f} s on average" in notes
     )
-    for order in (np.argmin, np.argmax):
-        assert order(cpu) == order(first) == order(later)
-    assert (
-        f"seed {seeds[int(np.argmin(cpu))]} the fastest and seed {seeds[int(np.argmax(cpu))]} "
-        "the slowest in all three" in notes
-    )
+    slowest = {seeds[int(np.argmax(x))] for x in (cpu, first, later)}
+    fastest = [seeds[int(np.argmin(x))] for x in (cpu, first, later)]
+    assert len(slowest) == 1, "the sentence says one seed is the slowest in all three"
+    if len(set(fastest)) == 1:
+        said = f"seed {fastest[0]} the fastest and seed {min(slowest)} the slowest in all three"
+    else:
+        assert fastest[0] == fastest[1], "write the sentence for this order of the seeds"
+        said = (
+            f"seed {min(slowest)} the slowest in all three, seed {fastest[0]} the fastest in "
+            f"the first two and seed {fastest[2]} in the third"
+        )
+    assert said in notes
 
 
 def _compute_rows() -> list[list[str]]:
@@ -828,3 +834,26 @@ def test_notes_state_the_qeubo_times_at_d32() -> None:
         f"seeds 0–5 took {new.min()}–{new.max()} s as stored and seeds 6–9, stored by older "
         f"code, {old.min()}–{old.max()} s" in notes
     )
+
+
+def test_notes_state_the_third_round_of_code_reruns() -> None:
+    """notes, the re-runs after the run loop's checkpoint change: one Hartmann 6 run per
+    registered algorithm (the hybrid twice) with 7739ca1's code and today's, all the same,
+    against ``equivalent_code.json``."""
+    from localpbo_core.optimizers import available_optimizers
+
+    notes = " ".join((RESULTS / "notes.md").read_text().split())
+    entries = [
+        e
+        for e in json.loads((RESULTS / "equivalent_code.json").read_text())
+        if e["commit"].startswith("7739ca1")
+    ]
+    assert sorted({e["algorithm"] for e in entries}) == sorted(available_optimizers())
+    assert len(entries) == len(available_optimizers()) + 1
+    assert all(e["run"].split("/")[-1].startswith("hartmann6__") for e in entries)
+    assert {(e["identical"], e["candidates"]) for e in entries} == {(62, 62)}
+    assert (
+        f"seed 0 of each of the {len(available_optimizers())} algorithms" in notes
+        or "seed 0 of each of the nine algorithms" in notes
+    ) and len(available_optimizers()) == 9
+    assert "gave the same 62 candidates of 62 in all ten" in notes
