@@ -43,6 +43,7 @@ from localpbo_core.experiments.claims import claims_table
 from localpbo_core.experiments.comparisons import compare
 from localpbo_core.experiments.coverage import (
     COVERAGE_SEEDS,
+    checkpoint_table,
     completion_costs,
     completion_plan,
     coverage_specs,
@@ -719,12 +720,14 @@ def write_report(
         "computing them, and the costs below count them as free. A command started with "
         "`--in-process` in several shells splits its runs between them (a sweep claims each "
         "run before computing it), and `--time-limit 3h` starts no run that would end after "
-        "the limit.",
+        "the limit unless one checkpoint interval is left (the run's progress is then kept "
+        "in its checkpoint for the next sweep).",
         "",
         "```",
         *(c.command for c in plan),
         "```",
         "",
+        *checkpoint_table(paths),
         *(
             [
                 "What each command costs, in the order above (commands by line number):",

@@ -383,3 +383,29 @@ def test_a_ray_sweep_continues_a_checkpoint(
     assert _stored_trace(run_path(tmp_path, plans[1])) == _stored_trace(
         run_path(ckpt_reference, plans[1])
     )
+
+
+def test_the_results_page_lists_the_checkpoints_under_way(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The Coverage section's table (:func:`checkpoint_table`): each checkpoint's spec, run,
+    evaluations kept, CPU seconds and whether today's code continues it; a damaged one says
+    so; none, no table."""
+    from localpbo_core import checkpoints
+    from localpbo_core.experiments.coverage import checkpoint_table
+
+    assert checkpoint_table([tmp_path]) == []
+    path = tmp_path / "myspec" / "checkpoints" / "hartmann6__sobol__seed3.ckpt.gz"
+    _checkpoint_at(_settings("sobol"), path, 10)
+    (path.parent / "broken__seed0.ckpt.gz").write_bytes(b"not gzip")
+    header = read_header(path)
+    cpu = f"{header['cpu_seconds']:.0f}"
+    table = checkpoint_table([tmp_path, tmp_path / "missing"])
+    assert table[4:6] == [
+        "| myspec | broken__seed0 | unreadable | | no |",
+        f"| myspec | hartmann6__sobol__seed3 | 10 of 30 | {cpu} | yes |",
+    ]
+    monkeypatch.setattr(
+        checkpoints, "code_digests", lambda a: {"digest": "0", "algorithm_digest": "0"}
+    )
+    assert checkpoint_table([tmp_path])[5].endswith("| no: other code |")

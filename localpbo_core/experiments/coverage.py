@@ -425,3 +425,46 @@ def coverage_table(runs: Sequence[StoredRun], specs: Sequence[str]) -> list[str]
             f"{group_list(unpaper, len(keys), n) or '—'} |"
         )
     return lines
+
+
+def checkpoint_table(folders: Sequence[str | Path]) -> list[str]:
+    """The runs under way kept in checkpoints (``checkpoints/*.ckpt.gz`` below ``folders``,
+    :mod:`localpbo_core.checkpoints`): per checkpoint its spec, run, evaluations kept of the
+    budget, the CPU seconds behind it and whether today's code continues it (the same run
+    sources' and algorithm's digests); nothing when there is none."""
+    from localpbo_core.checkpoints import CHECKPOINT_SUFFIX, CheckpointError, code_digests
+    from localpbo_core.checkpoints import read_header as read_checkpoint_header
+
+    rows = []
+    found = {
+        path
+        for folder in map(Path, folders)
+        if folder.is_dir()
+        for path in folder.rglob(f"*{CHECKPOINT_SUFFIX}")
+        if path.parent.name == "checkpoints"
+    }
+    for path in sorted(found):
+        run_id = path.name[: -len(CHECKPOINT_SUFFIX)]
+        try:
+            header = read_checkpoint_header(path)
+            done, budget = int(header["evaluations"]), int(header["budget"])
+            cpu = float(header["cpu_seconds"])
+            algorithm = str(header["settings"]["algorithm"])
+        except (CheckpointError, KeyError, TypeError, ValueError):
+            rows.append(f"| {path.parent.parent.name} | {run_id} | unreadable | | no |")
+            continue
+        today = "yes" if header.get("code") == code_digests(algorithm) else "no: other code"
+        rows.append(
+            f"| {path.parent.parent.name} | {run_id} | {done} of {budget} | {cpu:.0f} | {today} |"
+        )
+    if not rows:
+        return []
+    return [
+        "Runs under way, kept in checkpoints: the commands above continue each from there "
+        '(docs/reproducing.md, "Checkpoints"), and the costs below count them whole.',
+        "",
+        "| spec | run | evaluations kept | CPU s behind it | continues with today's code |",
+        "| --- | --- | ---: | ---: | --- |",
+        *rows,
+        "",
+    ]
