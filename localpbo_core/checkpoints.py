@@ -83,6 +83,7 @@ class Segment:
     platform: dict[str, Any]
 
     def document(self) -> dict[str, Any]:
+        """The segment as a checkpoint header and a stored run list it."""
         return {
             "evaluations": [self.first_evaluation, self.last_evaluation],
             "run_seconds": self.run_seconds,
