@@ -557,9 +557,9 @@ def test_reuse_copies_identical_runs_and_computes_the_rest(
     executed: list[str] = []
     real = sweep_module.execute_run
 
-    def spy(plan):
+    def spy(plan, *checkpointing):
         executed.append(plan.run_id)
-        return real(plan)
+        return real(plan, *checkpointing)
 
     monkeypatch.setattr(sweep_module, "execute_run", spy)
     result = sweep(other, out, in_process=True, progress=False, reuse=[tmp_path, reference])
@@ -640,7 +640,9 @@ algorithms:
     executed: list[str] = []
     real = sweep_module.execute_run
     monkeypatch.setattr(
-        sweep_module, "execute_run", lambda plan: executed.append(plan.run_id) or real(plan)
+        sweep_module,
+        "execute_run",
+        lambda plan, *checkpointing: executed.append(plan.run_id) or real(plan, *checkpointing),
     )
     result = sweep(other, out, in_process=True, progress=False, reuse=[reference])
     assert sorted(executed) == sorted(result.finished)
