@@ -297,6 +297,11 @@ def ckpt_reference(ckpt_spec: Path, tmp_path_factory: pytest.TempPathFactory) ->
     return out
 
 
+def _assert_as_reference(out: Path, reference: Path, plan: Any) -> None:
+    """The run of ``plan`` stored in ``out`` is the reference sweep's, but for its seconds."""
+    assert _stored_trace(run_path(out, plan)) == _stored_trace(run_path(reference, plan))
+
+
 def _stored_trace(path: Path) -> dict[str, Any]:
     doc = read_run(path)
     return _without_seconds(
@@ -344,9 +349,7 @@ def test_a_stopped_sweep_continues_from_the_checkpoints(
     assert [p["evaluations"] for p in parts] == [[1, kept], [kept + 1, BUDGET_SPEC]]
     assert stored["run_seconds"] == pytest.approx(sum(p["run_seconds"] for p in parts))
     assert stored["cpu_seconds"] == pytest.approx(sum(p["cpu_seconds"] for p in parts))
-    assert _stored_trace(run_path(tmp_path, plans[0])) == _stored_trace(
-        run_path(ckpt_reference, plans[0])
-    )
+    _assert_as_reference(tmp_path, ckpt_reference, plans[0])
 
 
 def test_without_checkpoints_a_sweep_neither_writes_nor_reads_them(
@@ -364,9 +367,7 @@ def test_without_checkpoints_a_sweep_neither_writes_nor_reads_them(
     assert result.finished == [plans[0].run_id] and result.resumed == {}
     assert "checkpoints" not in read_run(run_path(tmp_path, plans[0]))
     assert not path.exists()  # the stored run makes it useless; it is removed
-    assert _stored_trace(run_path(tmp_path, plans[0])) == _stored_trace(
-        run_path(ckpt_reference, plans[0])
-    )
+    _assert_as_reference(tmp_path, ckpt_reference, plans[0])
 
 
 def test_a_ray_sweep_continues_a_checkpoint(
@@ -380,9 +381,7 @@ def test_a_ray_sweep_continues_a_checkpoint(
     _checkpoint_at(plans[1].settings, checkpoint_path(tmp_path, plans[1]), 17)
     result = sweep(spec, tmp_path, plans[1:], workers=1, progress=False)
     assert result.finished == [plans[1].run_id] and result.resumed == {plans[1].run_id: 17}
-    assert _stored_trace(run_path(tmp_path, plans[1])) == _stored_trace(
-        run_path(ckpt_reference, plans[1])
-    )
+    _assert_as_reference(tmp_path, ckpt_reference, plans[1])
 
 
 def test_the_results_page_lists_the_checkpoints_under_way(
