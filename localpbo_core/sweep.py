@@ -628,14 +628,22 @@ def sweep(
     return result
 
 
-def checkpoint_evaluations(path: Path) -> int | None:
-    """The evaluations done in the checkpoint at ``path`` (None: none readable there)."""
+def checkpoint_progress(path: Path) -> tuple[int, float] | None:
+    """The evaluations done and run seconds behind the checkpoint at ``path`` (None: none
+    readable there)."""
     from localpbo_core.checkpoints import CheckpointError, read_header
 
     try:
-        return int(read_header(path)["evaluations"])
+        header = read_header(path)
+        return int(header["evaluations"]), max(0.0, float(header["run_seconds"]))
     except (CheckpointError, KeyError, TypeError, ValueError):
         return None
+
+
+def checkpoint_evaluations(path: Path) -> int | None:
+    """The evaluations done in the checkpoint at ``path`` (None: none readable there)."""
+    progress = checkpoint_progress(path)
+    return None if progress is None else progress[0]
 
 
 def _worth_starting(
@@ -645,12 +653,10 @@ def _worth_starting(
     ``longest``? Yes if what is left of it fits (a run continued from its checkpoint has the
     checkpoint's seconds behind it); else, with checkpoints, yes if at least one checkpoint
     interval is left, since its progress is then kept for the next sweep."""
-    behind = 0.0
-    if checkpoint is not None and checkpoint.exists():
-        from localpbo_core.checkpoints import CheckpointError, read_header
-
-        with contextlib.suppress(CheckpointError, KeyError, TypeError, ValueError):
-            behind = max(0.0, float(read_header(checkpoint)["run_seconds"]))
+    progress = (
+        None if checkpoint is None or not checkpoint.exists() else checkpoint_progress(checkpoint)
+    )
+    behind = 0.0 if progress is None else progress[1]
     if longest - behind <= left:
         return True
     return checkpoint_every is not None and left >= checkpoint_every
