@@ -1136,20 +1136,33 @@ def abandon_ray() -> NoReturn:
 
 @contextlib.contextmanager
 def _without_ray_sigterm_handler() -> Iterator[None]:
-    """``ray.init`` does not install its SIGTERM handler in the block (it calls
-    ``ray._private.utils.set_sigterm_handler``, replaced here by a no-op; a Ray without that
-    function installs its handler as before)."""
+    """``ray.init`` installs none of its SIGTERM handlers in the block, so a SIGTERM while Ray
+    starts reaches the caller's handler alone.
+
+    Ray has two: a Python one (``ray._private.utils.set_sigterm_handler``, replaced here by a
+    no-op), which calls ``sys.exit``; and the C++ failure signal handler of its driver
+    (absl's), which prints a stack, passes the signal on, then arms a 3-s alarm that aborts
+    the process (exit -6, often before anything was cleaned up or said) unless the process
+    has ended by then; it stays out while ``ray._private.ray_constants``'s
+    ``RAY_DISABLE_FAILURE_SIGNAL_HANDLER`` is true (Ray's own switch, read when the driver's
+    core worker starts; Ray's worker processes keep theirs). A Ray without either attribute
+    keeps that handler as before."""
+    import ray._private.ray_constants as ray_constants
     import ray._private.utils as ray_utils
 
-    original = getattr(ray_utils, "set_sigterm_handler", None)
-    if original is None:
-        yield
-        return
-    ray_utils.set_sigterm_handler = lambda handler: None
+    patched: list[tuple[Any, str, Any]] = []
+    for module, name, value in (
+        (ray_utils, "set_sigterm_handler", lambda handler: None),
+        (ray_constants, "RAY_DISABLE_FAILURE_SIGNAL_HANDLER", True),
+    ):
+        if hasattr(module, name):
+            patched.append((module, name, getattr(module, name)))
+            setattr(module, name, value)
     try:
         yield
     finally:
-        ray_utils.set_sigterm_handler = original
+        for module, name, original in patched:
+            setattr(module, name, original)
 
 
 @contextlib.contextmanager

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -495,6 +496,50 @@ def test_sigterm_while_ray_starts_stops_the_sweep_cleanly(delay_s, tmp_path) -> 
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "interrupted" in stderr
     assert _left_behind(proc, folders[0], 10.0) == []
+
+
+_SIGTERM_DISPOSITION = """
+import ctypes, json, os, signal, sys
+from localpbo_core import sweep
+
+libc = ctypes.CDLL(None, use_errno=True)
+
+
+def disposition() -> int:
+    # glibc's struct sigaction starts with the handler's address; 256 bytes hold all of it
+    old = ctypes.create_string_buffer(256)
+    assert libc.sigaction(signal.SIGTERM, None, old) == 0
+    return int.from_bytes(old.raw[:8], "little")
+
+
+signal.signal(signal.SIGTERM, lambda signum, frame: None)
+before = disposition()
+sweep.start_ray(None, 1, keep_sigterm_handler=sys.argv[1] == "keep")
+after = disposition()
+sweep.stop_ray()
+print(json.dumps({"kept": before == after}))
+"""
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_ray_init_leaves_the_os_sigterm_handler_in_place(keep, tmp_path) -> None:
+    """With ``keep_sigterm_handler``, ``ray.init`` leaves the process's SIGTERM handler as it is,
+    down to the C handler the operating system calls (read back with ``sigaction``): none of
+    Ray's (its Python ``sys.exit`` handler, its C++ failure handler that aborts the process 3 s
+    after a SIGTERM) gets a SIGTERM that lands while Ray starts. Without it, both are there, so
+    the check can tell."""
+    script = tmp_path / "disposition.py"
+    script.write_text(_SIGTERM_DISPOSITION)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    done = subprocess.run(
+        [sys.executable, str(script), "keep" if keep else "ray"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == {"kept": keep}
 
 
 def test_sigkill_of_the_driver_leaves_nothing_once_its_watchdog_has_run(tmp_path) -> None:
