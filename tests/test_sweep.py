@@ -499,10 +499,10 @@ def test_sigterm_while_ray_starts_stops_the_sweep_cleanly(delay_s, tmp_path) -> 
 
 
 _SIGTERM_DISPOSITION = """
-import ctypes, json, os, signal, sys
+import ctypes, json, signal, sys
 from localpbo_core import sweep
 
-libc = ctypes.CDLL(None, use_errno=True)
+libc = ctypes.CDLL(None)
 
 
 def disposition() -> int:
@@ -530,13 +530,11 @@ def test_ray_init_leaves_the_os_sigterm_handler_in_place(keep, tmp_path) -> None
     the check can tell."""
     script = tmp_path / "disposition.py"
     script.write_text(_SIGTERM_DISPOSITION)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     done = subprocess.run(
         [sys.executable, str(script), "keep" if keep else "ray"],
         capture_output=True,
         text=True,
         timeout=120,
-        env=env,
     )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout.strip().splitlines()[-1]) == {"kept": keep}
